@@ -1,0 +1,229 @@
+"""Connectivity of triangle meshes: edges, one-rings, boundaries, incidence.
+
+All functions take ``faces`` of shape (F, 3) (validated, int64) and return
+plain arrays. Build these once per connectivity and reuse them while only the
+point coordinates change.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+__all__ = [
+    "EdgeTopology",
+    "edge_topology",
+    "vertex_face_incidence",
+    "one_ring",
+    "boundary_edges",
+    "boundary_vertices",
+]
+
+
+@dataclass(frozen=True)
+class EdgeTopology:
+    """Undirected edges of a triangle mesh and how faces use them.
+
+    Attributes
+    ----------
+    edges : numpy.ndarray, shape (E, 2), int64
+        Unique undirected edges, ``edges[:, 0] < edges[:, 1]``.
+    halfedge_edge : numpy.ndarray, shape (F, 3), int64
+        Edge id of half-edge ``faces[f, k] -> faces[f, (k + 1) % 3]``; ``-1`` for
+        the zero-length half-edges of faces that repeat a vertex.
+    face_count : numpy.ndarray, shape (E,), int64
+        Number of faces using each edge: 1 on the boundary, 2 on a manifold
+        interior edge, more at non-manifold edges.
+    """
+
+    edges: np.ndarray
+    halfedge_edge: np.ndarray
+    face_count: np.ndarray
+
+    @property
+    def n_boundary_edges(self) -> int:
+        """Number of edges used by exactly one face."""
+        return int(np.count_nonzero(self.face_count == 1))
+
+    @property
+    def n_nonmanifold_edges(self) -> int:
+        """Number of edges used by more than two faces."""
+        return int(np.count_nonzero(self.face_count > 2))
+
+
+@njit(cache=True, error_model="numpy")
+def _group_halfedges(faces, n_vertices):
+    n_faces = faces.shape[0]
+    # bucket every half-edge by its smaller vertex (counting sort)
+    start = np.zeros(n_vertices + 1, np.int64)
+    for f in range(n_faces):
+        for k in range(3):
+            a = faces[f, k]
+            b = faces[f, (k + 1) % 3]
+            if a != b:
+                start[min(a, b) + 1] += 1
+    for v in range(n_vertices):
+        start[v + 1] += start[v]
+    n_half = start[n_vertices]
+    fill = start[:-1].copy()
+    bucket_hi = np.empty(n_half, np.int64)
+    bucket_half = np.empty(n_half, np.int64)
+    for f in range(n_faces):
+        for k in range(3):
+            a = faces[f, k]
+            b = faces[f, (k + 1) % 3]
+            if a != b:
+                lo = min(a, b)
+                bucket_hi[fill[lo]] = max(a, b)
+                bucket_half[fill[lo]] = 3 * f + k
+                fill[lo] += 1
+    # within a bucket, half-edges with the same larger vertex form one edge
+    edge_of_slot = np.full(n_half, -1, np.int64)
+    edges = np.empty((n_half, 2), np.int64)
+    count = np.zeros(n_half, np.int64)
+    n_edges = 0
+    for v in range(n_vertices):
+        for i in range(start[v], start[v + 1]):
+            if edge_of_slot[i] >= 0:
+                continue
+            edge_of_slot[i] = n_edges
+            c = 1
+            for j in range(i + 1, start[v + 1]):
+                if bucket_hi[j] == bucket_hi[i]:
+                    edge_of_slot[j] = n_edges
+                    c += 1
+            count[n_edges] = c
+            edges[n_edges, 0] = v
+            edges[n_edges, 1] = bucket_hi[i]
+            n_edges += 1
+    halfedge_edge = np.full(3 * n_faces, -1, np.int64)
+    for i in range(n_half):
+        halfedge_edge[bucket_half[i]] = edge_of_slot[i]
+    return halfedge_edge.reshape(n_faces, 3), edges[:n_edges].copy(), count[:n_edges].copy()
+
+
+def edge_topology(faces: np.ndarray, n_vertices: int) -> EdgeTopology:
+    """Group the half-edges of a triangle mesh into undirected edges.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64
+        Triangles.
+    n_vertices : int
+        Number of mesh vertices V.
+
+    Returns
+    -------
+    EdgeTopology
+    """
+    halfedge_edge, edges, count = _group_halfedges(faces, int(n_vertices))
+    return EdgeTopology(edges=edges, halfedge_edge=halfedge_edge, face_count=count)
+
+
+@njit(cache=True, error_model="numpy")
+def _incidence(faces, n_vertices):
+    n_faces = faces.shape[0]
+    indptr = np.zeros(n_vertices + 1, np.int64)
+    for f in range(n_faces):
+        for k in range(3):
+            indptr[faces[f, k] + 1] += 1
+    for v in range(n_vertices):
+        indptr[v + 1] += indptr[v]
+    fill = indptr[:-1].copy()
+    face_ids = np.empty(3 * n_faces, np.int64)
+    corners = np.empty(3 * n_faces, np.int64)
+    for f in range(n_faces):
+        for k in range(3):
+            v = faces[f, k]
+            face_ids[fill[v]] = f
+            corners[fill[v]] = k
+            fill[v] += 1
+    return indptr, face_ids, corners
+
+
+def vertex_face_incidence(
+    faces: np.ndarray, n_vertices: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Faces around each vertex, in compressed sparse row form.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64
+    n_vertices : int
+
+    Returns
+    -------
+    indptr : numpy.ndarray, shape (V + 1,)
+        The faces of vertex ``v`` are ``face_ids[indptr[v]:indptr[v + 1]]``.
+    face_ids : numpy.ndarray, shape (3F,)
+    corners : numpy.ndarray, shape (3F,)
+        Corner (0, 1 or 2) at which ``v`` appears in each listed face.
+    """
+    return _incidence(faces, int(n_vertices))
+
+
+def one_ring(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """One-ring vertex neighbourhoods N(i), in compressed sparse row form.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64
+    n_vertices : int
+
+    Returns
+    -------
+    indptr : numpy.ndarray, shape (V + 1,)
+    indices : numpy.ndarray, shape (2E,)
+        The neighbours of vertex ``i`` are ``indices[indptr[i]:indptr[i + 1]]``
+        (sorted, each once). Isolated vertices have none.
+    """
+    edges = edge_topology(faces, n_vertices).edges
+    both = np.concatenate([edges, edges[:, ::-1]])
+    order = np.lexsort((both[:, 1], both[:, 0]))
+    both = both[order]
+    indptr = np.zeros(n_vertices + 1, np.int64)
+    np.add.at(indptr, both[:, 0] + 1, 1)
+    return np.cumsum(indptr), np.ascontiguousarray(both[:, 1])
+
+
+def boundary_edges(faces: np.ndarray, n_vertices: int, topology: EdgeTopology | None = None) -> np.ndarray:
+    """Directed boundary edges, oriented as in the single face that uses each.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64
+    n_vertices : int
+    topology : EdgeTopology, optional
+        Reuse an already built :func:`edge_topology`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (B, 2), int64
+        ``(a, b)`` pairs; following them traces the holes of the mesh.
+    """
+    topo = topology if topology is not None else edge_topology(faces, n_vertices)
+    he = topo.halfedge_edge
+    on_boundary = np.zeros(he.shape, bool)
+    valid = he >= 0
+    on_boundary[valid] = topo.face_count[he[valid]] == 1
+    f, k = np.nonzero(on_boundary)
+    return np.stack([faces[f, k], faces[f, (k + 1) % 3]], axis=1)
+
+
+def boundary_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Boolean mask of vertices that lie on a boundary edge.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64
+    n_vertices : int
+
+    Returns
+    -------
+    numpy.ndarray, shape (V,), bool
+    """
+    mask = np.zeros(n_vertices, bool)
+    mask[boundary_edges(faces, n_vertices).ravel()] = True
+    return mask
