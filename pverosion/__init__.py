@@ -1,0 +1,17 @@
+"""pverosion: erosion simulation directly on triangle meshes and voxel fields.
+
+Every process is a VTK filter (:mod:`pverosion.filters`) over array kernels
+(:mod:`pverosion.kernels`), with front ends as functions (``pverosion.curvature``),
+a PyVista accessor (``mesh.erosion.curvature()``), the ``pverosion`` command line,
+and ParaView plugins.
+"""
+
+from pverosion.api import curvature
+from pverosion.kernels.validation import InvalidMeshError
+from pverosion.plotting import CURVATURE_CMAP, curvature_cmap
+
+__version__ = "0.1.0"
+
+curvature_cmap()  # register the colour map of the papers under CURVATURE_CMAP
+
+__all__ = ["CURVATURE_CMAP", "InvalidMeshError", "__version__", "curvature", "curvature_cmap"]

@@ -1,0 +1,23 @@
+"""PyVista accessor ``dataset.erosion.<stage>(...)``.
+
+Registered through the ``pyvista.accessors`` entry point, so it is available
+on every dataset as soon as pverosion is installed, without an import.
+"""
+
+from __future__ import annotations
+
+import pyvista as pv
+
+from pverosion import api
+
+
+@pv.register_dataset_accessor("erosion", pv.DataSet)
+class ErosionAccessor:
+    """Namespace of pverosion stages on PyVista datasets; every method returns a new dataset."""
+
+    def __init__(self, dataset: pv.DataSet):
+        self._dataset = dataset
+
+    def curvature(self, *, orientation: str = "outward", normalization: str = "none") -> pv.PolyData:
+        """Per-vertex curvature; see :func:`pverosion.curvature`."""
+        return api.curvature(self._dataset, orientation=orientation, normalization=normalization)

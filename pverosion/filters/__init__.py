@@ -1,0 +1,12 @@
+"""VTK filters (VTKPythonAlgorithmBase subclasses) wrapping the kernels.
+
+``ALL_FILTERS`` lists every stage; the CLI and the ParaView plugin are
+generated from it, so a new stage is exposed by adding its class here.
+"""
+
+from pverosion.filters.base import ErosionFilter, Param
+from pverosion.filters.curvature import Curvature
+
+ALL_FILTERS: tuple[type[ErosionFilter], ...] = (Curvature,)
+
+__all__ = ["ALL_FILTERS", "Curvature", "ErosionFilter", "Param"]

@@ -1,0 +1,272 @@
+"""The filter contract shared by every pverosion stage.
+
+A stage is a :class:`~vtkmodules.util.vtkAlgorithm.VTKPythonAlgorithmBase`
+subclass that declares its options once, as :class:`Param` metadata. From that
+metadata the base class generates the VTK-style ``SetName``/``GetName``
+methods (which call ``Modified()`` only on change); the CLI, the PyVista
+accessor and the ParaView plugin generator read the same metadata, so an
+option is written in one place.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+from vtkmodules.util import numpy_support
+from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
+from vtkmodules.vtkCommonCore import vtkIdTypeArray, vtkObject, vtkStringArray
+from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+
+from pverosion.kernels.validation import InvalidMeshError
+
+__all__ = ["Param", "ErosionFilter", "polydata_triangles", "set_point_array", "set_field_value", "replace_triangles"]
+
+
+@dataclass(frozen=True)
+class Param:
+    """One option of a filter.
+
+    Parameters
+    ----------
+    name : str
+        snake_case keyword used by Python front ends (``normalization``);
+        the VTK methods are ``Set``/``Get`` + CamelCase (``SetNormalization``).
+    default : bool, int, float or str
+        Default value; its type is the option's type.
+    doc : str
+        One-line description shown in docstrings, ``--help`` and ParaView.
+    choices : tuple of str, optional
+        Allowed values of a string option.
+    minimum, maximum : float, optional
+        Inclusive bounds of a numeric option.
+    """
+
+    name: str
+    default: Any
+    doc: str
+    choices: tuple[str, ...] | None = None
+    minimum: float | None = None
+    maximum: float | None = None
+
+    @property
+    def kind(self) -> type:
+        """Python type of the option (bool, int, float or str)."""
+        return type(self.default)
+
+    @property
+    def camel(self) -> str:
+        """CamelCase name used by the VTK methods and ParaView properties."""
+        return "".join(part.capitalize() for part in self.name.split("_"))
+
+    def validate(self, value: Any) -> Any:
+        """Return ``value`` converted to the option's type, or raise ``ValueError``/``TypeError``."""
+        kind = self.kind
+        if kind is bool:
+            if not isinstance(value, (bool, np.bool_, int, np.integer)) or value not in (0, 1):
+                raise TypeError(f"{self.name} must be a bool; got {value!r}")
+            return bool(value)
+        if kind in (int, float):
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+                raise TypeError(f"{self.name} must be a number; got {value!r}")
+            if kind is int and float(value) != int(value):
+                raise TypeError(f"{self.name} must be an integer; got {value!r}")
+            value = kind(value)
+            if not np.isfinite(value):
+                raise ValueError(f"{self.name} must be finite; got {value!r}")
+            if self.minimum is not None and value < self.minimum:
+                raise ValueError(f"{self.name} must be >= {self.minimum}; got {value!r}")
+            if self.maximum is not None and value > self.maximum:
+                raise ValueError(f"{self.name} must be <= {self.maximum}; got {value!r}")
+            return value
+        if not isinstance(value, str):
+            raise TypeError(f"{self.name} must be a string; got {value!r}")
+        if self.choices is not None and value not in self.choices:
+            raise ValueError(f"{self.name} must be one of {self.choices}; got {value!r}")
+        return value
+
+
+class ErosionFilter(VTKPythonAlgorithmBase):
+    """Base class of all pverosion filters (one input port, one output port).
+
+    Subclasses set ``PARAMS``, ``LABEL`` and implement :meth:`execute`.
+    Keyword arguments of the constructor set options by their snake_case name.
+
+    Errors raised by :meth:`execute` are kept and re-raised by :meth:`run`
+    (VTK itself would only print them); a plain VTK pipeline sees the usual
+    "returned failure" error from the executive.
+    """
+
+    PARAMS: ClassVar[tuple[Param, ...]] = ()
+    LABEL: ClassVar[str] = ""
+    INPUT_TYPE: ClassVar[str] = "vtkPolyData"
+    OUTPUT_TYPE: ClassVar[str] = "vtkPolyData"
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        for param in cls.PARAMS:
+            setter, getter = f"Set{param.camel}", f"Get{param.camel}"
+            if setter not in cls.__dict__:
+                setattr(cls, setter, _make_setter(param.name))
+            if getter not in cls.__dict__:
+                setattr(cls, getter, _make_getter(param.name))
+
+    def __init__(self, **options):
+        VTKPythonAlgorithmBase.__init__(
+            self, nInputPorts=1, inputType=self.INPUT_TYPE, nOutputPorts=1, outputType=self.OUTPUT_TYPE
+        )
+        self._values = {p.name: p.default for p in self.PARAMS}
+        self._error: BaseException | None = None
+        for name, value in options.items():
+            self.set_option(name, value)
+
+    @classmethod
+    def param(cls, name: str) -> Param:
+        """The :class:`Param` called ``name``; ``TypeError`` naming the known options otherwise."""
+        for p in cls.PARAMS:
+            if p.name == name:
+                return p
+        known = ", ".join(p.name for p in cls.PARAMS) or "none"
+        raise TypeError(f"{cls.__name__} has no option {name!r} (options: {known})")
+
+    def set_option(self, name: str, value: Any) -> None:
+        """Set option ``name``; calls ``Modified()`` only when the value changes."""
+        value = self.param(name).validate(value)
+        if self._values[name] != value:
+            self._values[name] = value
+            self.Modified()
+
+    def get_option(self, name: str) -> Any:
+        """Current value of option ``name``."""
+        self.param(name)
+        return self._values[name]
+
+    @property
+    def options(self) -> dict[str, Any]:
+        """All option values by snake_case name."""
+        return dict(self._values)
+
+    def RequestData(self, request, in_info, out_info):  # noqa: N802 (VTK API)
+        """Run :meth:`execute` on the input and output data objects."""
+        self._error = None
+        try:
+            inp = self.GetInputData(in_info, 0, 0)
+            out = self.GetOutputData(out_info, 0)
+            self.UpdateProgress(0.0)
+            self.execute(inp, out)
+            self.UpdateProgress(1.0)
+        except Exception as exc:  # noqa: BLE001 - kept and re-raised by run()
+            self._error = exc
+            return 0
+        return 1
+
+    def execute(self, inp, out) -> None:
+        """Fill ``out`` from ``inp``; implemented by each stage."""
+        raise NotImplementedError
+
+    def run(self, data):
+        """Execute on ``data`` and return a new output object; raise the error of a failed run.
+
+        Parameters
+        ----------
+        data : vtkDataObject
+            Input data object (PyVista datasets are VTK objects too).
+
+        Returns
+        -------
+        vtkDataObject
+            A new object, independent of this filter's later updates.
+        """
+        self.SetInputDataObject(0, data)
+        shown = vtkObject.GetGlobalWarningDisplay()
+        vtkObject.GlobalWarningDisplayOff()
+        try:
+            self.Update()
+        finally:
+            vtkObject.SetGlobalWarningDisplay(shown)
+            self.SetInputDataObject(0, None)
+        if self._error is not None:
+            error, self._error = self._error, None
+            raise error
+        result = self.GetOutputDataObject(0).NewInstance()
+        result.ShallowCopy(self.GetOutputDataObject(0))
+        return result
+
+
+def _make_setter(name):
+    def setter(self, value):
+        self.set_option(name, value)
+
+    setter.__name__ = f"Set{name}"
+    setter.__doc__ = f"Set option ``{name}``."
+    return setter
+
+
+def _make_getter(name):
+    def getter(self):
+        return self.get_option(name)
+
+    getter.__name__ = f"Get{name}"
+    getter.__doc__ = f"Return option ``{name}``."
+    return getter
+
+
+def polydata_triangles(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:
+    """Points (V, 3) and triangles (F, 3) of a vtkPolyData, without copying where possible.
+
+    Raises
+    ------
+    InvalidMeshError
+        If the mesh has no points, no polygons, triangle strips, or polygons
+        that are not triangles.
+    """
+    if mesh is None or not isinstance(mesh, vtkPolyData):
+        raise InvalidMeshError(f"expected a vtkPolyData surface; got {type(mesh).__name__}")
+    if mesh.GetNumberOfPoints() == 0:
+        raise InvalidMeshError("mesh is empty: it has no points")
+    if mesh.GetNumberOfStrips() > 0:
+        raise InvalidMeshError("mesh has triangle strips: triangulate it first (mesh.triangulate())")
+    polys = mesh.GetPolys()
+    if polys.GetNumberOfCells() == 0:
+        raise InvalidMeshError("mesh has no polygons (only vertices or lines)")
+    offsets = numpy_support.vtk_to_numpy(polys.GetOffsetsArray())
+    sizes = np.diff(offsets)
+    if np.any(sizes != 3):
+        bad = int(np.count_nonzero(sizes != 3))
+        raise InvalidMeshError(
+            f"mesh has {bad} polygons that are not triangles (sizes {sorted(set(sizes.tolist()))}): "
+            "triangulate it first (mesh.triangulate())"
+        )
+    faces = numpy_support.vtk_to_numpy(polys.GetConnectivityArray()).reshape(-1, 3)
+    points = numpy_support.vtk_to_numpy(mesh.GetPoints().GetData())
+    return points, faces
+
+
+def replace_triangles(mesh: vtkPolyData, faces: np.ndarray) -> None:
+    """Replace the polygons of ``mesh`` by the triangles ``faces`` (F, 3)."""
+    connectivity = numpy_support.numpy_to_vtk(np.ascontiguousarray(faces, dtype=np.int64).ravel(), deep=True,
+                                              array_type=vtkIdTypeArray().GetDataType())
+    offsets = numpy_support.numpy_to_vtk(np.arange(0, 3 * len(faces) + 1, 3, dtype=np.int64), deep=True,
+                                         array_type=vtkIdTypeArray().GetDataType())
+    cells = vtkCellArray()
+    cells.SetData(offsets, connectivity)
+    mesh.SetPolys(cells)
+
+
+def set_point_array(mesh, name: str, values: np.ndarray) -> None:
+    """Add (or replace) point array ``name`` on ``mesh`` from an (N,) or (N, k) array."""
+    arr = numpy_support.numpy_to_vtk(np.ascontiguousarray(values, dtype=np.float64), deep=True)
+    arr.SetName(name)
+    mesh.GetPointData().AddArray(arr)
+
+
+def set_field_value(mesh, name: str, value) -> None:
+    """Store a scalar, a string, or a 1-D array of numbers as field data ``name``."""
+    if isinstance(value, str):
+        arr = vtkStringArray()
+        arr.InsertNextValue(value)
+    else:
+        arr = numpy_support.numpy_to_vtk(np.atleast_1d(np.asarray(value, dtype=np.float64)), deep=True)
+    arr.SetName(name)
+    mesh.GetFieldData().AddArray(arr)

@@ -1,0 +1,176 @@
+"""Reading meshes, atomic writes, and ``.pvd`` time series that PyVista and ParaView animate."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import pyvista as pv
+
+__all__ = ["read_mesh", "write_atomic", "atomic_path", "TimeSeriesWriter", "EXTENSIONS"]
+
+EXTENSIONS = {
+    "PolyData": ".vtp",
+    "ImageData": ".vti",
+    "UnstructuredGrid": ".vtu",
+    "StructuredGrid": ".vts",
+    "RectilinearGrid": ".vtr",
+    "MultiBlock": ".vtm",
+}
+"""XML VTK extension used for each PyVista dataset type."""
+
+
+def read_mesh(path: str | os.PathLike) -> pv.PolyData:
+    """Read a surface from any format PyVista reads (PLY, STL, OBJ, VTP, VTK, ...).
+
+    Volumetric datasets are reduced to their outer surface.
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    pyvista.PolyData
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        If the file holds no surface.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no such file: {path}")
+    data = pv.read(path)
+    if isinstance(data, pv.MultiBlock):
+        data = data.combine()
+    if not isinstance(data, pv.PolyData):
+        data = data.extract_surface()
+    if data.n_points == 0:
+        raise ValueError(f"{path} holds no surface points")
+    return data
+
+
+def atomic_path(path: str | os.PathLike):
+    """Context manager yielding a temporary path that replaces ``path`` on success.
+
+    The temporary file sits in the same folder with the same extension, so
+    writers that pick a format by extension work; on error it is removed and
+    ``path`` is left as it was.
+    """
+    return _AtomicPath(Path(path))
+
+
+class _AtomicPath:
+    def __init__(self, path: Path):
+        self.path = path
+
+    def __enter__(self) -> Path:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.stem}.", suffix=self.path.suffix, dir=self.path.parent)
+        os.close(fd)
+        self.tmp = Path(tmp)
+        return self.tmp
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            os.replace(self.tmp, self.path)
+        else:
+            self.tmp.unlink(missing_ok=True)
+
+
+def write_atomic(dataset: pv.DataObject, path: str | os.PathLike) -> Path:
+    """Save ``dataset`` to ``path`` (format by extension) through a temporary file and a rename.
+
+    Parameters
+    ----------
+    dataset : pyvista.DataObject
+    path : str or path-like
+
+    Returns
+    -------
+    pathlib.Path
+        The written path.
+    """
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        pv.wrap(dataset).save(tmp)
+    return path
+
+
+class TimeSeriesWriter:
+    """Write datasets step by step into a ``.pvd`` collection.
+
+    Each step goes to ``<stem>/<stem>_<index>.<ext>`` and the ``.pvd`` index is
+    rewritten after it, both atomically: a run interrupted at any moment
+    leaves a valid collection of all steps completed so far.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The ``.pvd`` file to create (replaced if it exists).
+
+    Examples
+    --------
+    >>> import pyvista as pv, tempfile, os
+    >>> from pverosion.io import TimeSeriesWriter
+    >>> folder = tempfile.mkdtemp()
+    >>> with TimeSeriesWriter(os.path.join(folder, "run.pvd")) as series:
+    ...     for step in range(3):
+    ...         _ = series.write(pv.Sphere(radius=1 + step), time=step)
+    >>> pv.get_reader(os.path.join(folder, "run.pvd")).time_values
+    [0.0, 1.0, 2.0]
+    """
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+        if self.path.suffix != ".pvd":
+            raise ValueError(f"time series path must end in .pvd; got {self.path}")
+        self.folder = self.path.with_suffix("")
+        self.entries: list[tuple[float, str]] = []
+
+    def write(self, dataset: pv.DataObject, time: float) -> Path:
+        """Append ``dataset`` as the step at ``time`` and update the index.
+
+        Parameters
+        ----------
+        dataset : pyvista.DataObject
+        time : float
+            Must increase from step to step.
+
+        Returns
+        -------
+        pathlib.Path
+            The file written for this step.
+        """
+        dataset = pv.wrap(dataset)
+        time = float(time)
+        if self.entries and time <= self.entries[-1][0]:
+            raise ValueError(f"time values must increase; got {time} after {self.entries[-1][0]}")
+        ext = EXTENSIONS.get(type(dataset).__name__)
+        if ext is None:
+            raise TypeError(f"cannot write {type(dataset).__name__} to a .pvd series")
+        name = f"{self.folder.name}_{len(self.entries):06d}{ext}"
+        target = write_atomic(dataset, self.folder / name)
+        self.entries.append((time, f"{self.folder.name}/{name}"))
+        self._write_index()
+        return target
+
+    def _write_index(self) -> None:
+        lines = ['<?xml version="1.0"?>',
+                 '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
+                 "  <Collection>"]
+        lines += [f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(f)}/>' for t, f in self.entries]
+        lines += ["  </Collection>", "</VTKFile>", ""]
+        with atomic_path(self.path) as tmp:
+            tmp.write_text("\n".join(lines), encoding="utf-8")
+
+    def __enter__(self) -> TimeSeriesWriter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        return None
