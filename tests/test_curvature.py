@@ -1,0 +1,102 @@
+import numpy as np
+import pytest
+import pyvista as pv
+from conftest import height_field, icosphere
+
+import pverosion
+from pverosion.examples import load_cylinder, load_torus
+from pverosion.kernels import principal_curvatures
+
+
+def test_sphere_mean_and_gaussian_curvature():
+    r = 2.5
+    s = icosphere(r, 6)
+    assert s.n_points >= 40_000
+    c = principal_curvatures(s.points, s.regular_faces)
+    assert np.max(np.abs(c.mean - 1 / r)) <= 1e-3 / r
+    assert np.max(np.abs(c.gaussian - 1 / r**2)) <= 1e-3 / r**2
+
+
+def test_cylinder_mean_curvature_away_from_rims():
+    r = 0.8
+    cyl = load_cylinder(radius=r, height=4.0, n_around=128, n_along=64)
+    c = principal_curvatures(cyl.points, cyl.regular_faces)
+    inner = np.abs(cyl.points[:, 2]) < 1.5
+    assert np.max(np.abs(c.mean[inner] - 1 / (2 * r))) <= 0.01 / (2 * r)
+    assert np.max(np.abs(c.k2[inner])) <= 0.01 / r
+    # k1 runs around the axis, k2 along it
+    assert np.min(np.abs(c.direction2[inner, 2])) > 0.99
+
+
+def test_torus_mean_curvature():
+    R, r = 3.0, 1.0
+    torus = load_torus(major_radius=R, minor_radius=r, n_major=300, n_minor=150)
+    p = torus.points
+    rho = np.hypot(p[:, 0], p[:, 1])
+    cos_v = (rho - R) / r
+    exact = (R + 2 * r * cos_v) / (2 * r * (R + r * cos_v))
+    H = principal_curvatures(p, torus.regular_faces).mean
+    assert np.max(np.abs(H - exact)) <= 0.01 * np.max(np.abs(exact))
+
+
+def test_plane_has_zero_curvature():
+    plane = height_field(lambda x, y: 0.0 * x, n=31)
+    rng = np.random.default_rng(0)
+    pts = plane.points.copy()
+    pts[:, :2] += rng.uniform(-0.01, 0.01, size=(len(pts), 2))  # irregular triangles, still flat
+    c = principal_curvatures(pts, plane.regular_faces)
+    assert np.max(np.abs(c.mean)) < 1e-9
+    assert np.max(np.abs(c.gaussian)) < 1e-9
+
+
+def test_saddle_has_negative_gaussian_curvature():
+    saddle = height_field(lambda x, y: 0.5 * (x**2 - y**2), n=61)
+    c = principal_curvatures(saddle.points, saddle.regular_faces)
+    centre = np.linalg.norm(saddle.points[:, :2], axis=1) < 0.5
+    assert np.all(c.gaussian[centre] < 0)
+    # at the origin k1 = -k2 = 1 for z = (x^2 - y^2) / 2
+    origin = np.argmin(np.linalg.norm(saddle.points, axis=1))
+    assert c.k1[origin] == pytest.approx(1.0, rel=0.02)
+    assert c.k2[origin] == pytest.approx(-1.0, rel=0.02)
+
+
+def test_principal_frame_is_orthonormal_and_tangent():
+    s = icosphere(1.0, 3)
+    s.points[:, 0] *= 1.7  # an ellipsoid, distinct principal curvatures
+    c = principal_curvatures(s.points, s.regular_faces)
+    assert np.all(c.k1 >= c.k2)
+    for d in (c.direction1, c.direction2):
+        np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0, atol=1e-9)
+        np.testing.assert_allclose(np.einsum("ij,ij->i", d, c.normals), 0.0, atol=1e-9)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", c.direction1, c.direction2), 0.0, atol=1e-9)
+
+
+def test_curvature_scales_inversely_with_size():
+    s = icosphere(1.0, 3)
+    s.points[:, 2] *= 0.6
+    a = principal_curvatures(s.points, s.regular_faces)
+    b = principal_curvatures(4.0 * s.points, s.regular_faces)
+    np.testing.assert_allclose(b.mean, a.mean / 4.0, rtol=1e-9, atol=1e-12)
+
+
+def test_bunny_finite_and_convex_ears_positive(bunny):
+    out = pverosion.curvature(bunny)
+    for name in ("mean_curvature", "gaussian_curvature", "k1", "k2", "principal_direction_1"):
+        assert np.all(np.isfinite(out[name])), name
+    assert out.field_data["face_orientation"][0] == "outward"
+    assert int(out.field_data["flipped_faces"][0]) == bunny.n_cells
+    ears = out.points[:, 1] > 0.16  # the two ears stand above the head
+    assert np.median(out["mean_curvature"][ears]) > 0
+    assert np.mean(out["mean_curvature"][ears] > 0) > 0.7
+
+
+def test_bunny_sign_agrees_with_vtk_curvatures(bunny):
+    out = pverosion.curvature(bunny)
+    ours = out["mean_curvature"]
+    theirs = pv.PolyData(out.points.copy(), out.faces.copy()).curvature("mean")  # outward-oriented copy
+    strong = (np.abs(ours) > 0.1 * np.percentile(np.abs(ours), 95)) & (
+        np.abs(theirs) > 0.1 * np.percentile(np.abs(theirs), 95)
+    )
+    agree = np.sign(ours[strong]) == np.sign(theirs[strong])
+    assert strong.sum() > 0.5 * bunny.n_points
+    assert agree.mean() >= 0.9

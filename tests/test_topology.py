@@ -1,0 +1,84 @@
+import numpy as np
+import scipy.sparse as sp
+from conftest import icosphere
+from scipy.sparse.csgraph import connected_components
+
+from pverosion.examples import load_cylinder
+from pverosion.kernels import (
+    boundary_edges,
+    boundary_vertices,
+    edge_topology,
+    laplacian_vectors,
+    one_ring,
+    uniform_laplacian,
+    vertex_face_incidence,
+)
+
+
+def test_closed_sphere_edges_follow_euler():
+    s = icosphere(1.0, 3)
+    f = s.regular_faces
+    topo = edge_topology(f, s.n_points)
+    assert len(topo.edges) == 3 * len(f) // 2
+    assert s.n_points - len(topo.edges) + len(f) == 2
+    assert np.all(topo.face_count == 2)
+    assert topo.n_boundary_edges == 0
+    assert np.all(topo.edges[:, 0] < topo.edges[:, 1])
+
+
+def test_bunny_has_223_open_edges(bunny):
+    f = bunny.regular_faces
+    topo = edge_topology(f, bunny.n_points)
+    assert topo.n_boundary_edges == 223
+    rim = boundary_edges(f, bunny.n_points)
+    assert len(rim) == 223
+    # each rim edge runs in the direction of the one face that uses it
+    face_edges = {(a, b) for tri in f.tolist() for a, b in zip(tri, tri[1:] + tri[:1])}
+    assert all((a, b) in face_edges and (b, a) not in face_edges for a, b in rim.tolist())
+
+
+def test_one_ring_matches_scipy_adjacency():
+    s = icosphere(1.0, 2)
+    f = s.regular_faces
+    indptr, indices = one_ring(f, s.n_points)
+    rows = f.ravel()
+    cols = np.roll(f, -1, axis=1).ravel()
+    ref = sp.coo_matrix((np.ones(2 * len(rows)), (np.r_[rows, cols], np.r_[cols, rows])), shape=(s.n_points,) * 2).tocsr()
+    ref.sum_duplicates()
+    ref.sort_indices()
+    np.testing.assert_array_equal(indptr, ref.indptr)
+    np.testing.assert_array_equal(indices, ref.indices)
+    assert connected_components(ref)[0] == 1
+
+
+def test_incidence_lists_every_corner_once():
+    s = icosphere(1.0, 2)
+    f = s.regular_faces
+    indptr, face_ids, corners = vertex_face_incidence(f, s.n_points)
+    assert indptr[-1] == f.size
+    for v in (0, 5, s.n_points - 1):
+        sl = slice(indptr[v], indptr[v + 1])
+        np.testing.assert_array_equal(f[face_ids[sl], corners[sl]], v)
+        assert set(face_ids[sl]) == set(np.flatnonzero((f == v).any(axis=1)))
+
+
+def test_cylinder_boundary_is_its_two_rims():
+    c = load_cylinder(n_around=32, n_along=10)
+    mask = boundary_vertices(c.regular_faces, c.n_points)
+    z = c.points[:, 2]
+    np.testing.assert_array_equal(mask, np.isclose(np.abs(z), z.max()))
+
+
+def test_uniform_laplacian_is_mean_of_neighbours_minus_vertex():
+    s = icosphere(2.0, 2)
+    f = s.regular_faces
+    L = uniform_laplacian(f, s.n_points)
+    np.testing.assert_allclose(np.asarray(L.sum(axis=1)).ravel(), 0.0, atol=1e-12)
+    vec = laplacian_vectors(s.points, f)
+    indptr, indices = one_ring(f, s.n_points)
+    for i in (0, 17, 100):
+        nbrs = indices[indptr[i]:indptr[i + 1]]
+        np.testing.assert_allclose(vec[i], s.points[nbrs].mean(axis=0) - s.points[i], atol=1e-12)
+    # on a sphere L points inward, along -normal
+    radial = np.einsum("ij,ij->i", vec, s.points / 2.0)
+    assert np.all(radial < 0)
