@@ -49,7 +49,7 @@ def read_mesh(path: str | os.PathLike) -> pv.PolyData:
     if isinstance(data, pv.MultiBlock):
         data = data.combine()
     if not isinstance(data, pv.PolyData):
-        data = data.extract_surface()
+        data = data.extract_surface(algorithm="dataset_surface")
     if data.n_points == 0:
         raise ValueError(f"{path} holds no surface points")
     return data

@@ -1,0 +1,51 @@
+import numpy as np
+import pytest
+import pyvista as pv
+
+from pverosion.io import TimeSeriesWriter, read_mesh, write_atomic
+
+
+def test_time_series_round_trips_through_pyvista_reader(tmp_path):
+    path = tmp_path / "run.pvd"
+    with TimeSeriesWriter(path) as series:
+        for step in range(3):
+            series.write(pv.Sphere(radius=1.0 + step), time=0.5 * step)
+    reader = pv.get_reader(path)
+    assert reader.time_values == [0.0, 0.5, 1.0]
+    reader.set_active_time_value(1.0)
+    mesh = reader.read()[0]
+    assert np.max(np.linalg.norm(mesh.points, axis=1)) == pytest.approx(3.0, rel=1e-6)
+    assert not list(tmp_path.rglob(".*"))  # no temporary files left behind
+
+
+def test_time_series_index_is_valid_after_each_step(tmp_path):
+    series = TimeSeriesWriter(tmp_path / "steps.pvd")
+    series.write(pv.Sphere(), time=0)
+    assert pv.get_reader(tmp_path / "steps.pvd").number_time_points == 1
+    series.write(pv.ImageData(dimensions=(2, 2, 2)), time=1)
+    assert pv.get_reader(tmp_path / "steps.pvd").number_time_points == 2
+    with pytest.raises(ValueError, match="increase"):
+        series.write(pv.Sphere(), time=1)
+    with pytest.raises(ValueError, match=".pvd"):
+        TimeSeriesWriter(tmp_path / "x.vtp")
+
+
+def test_atomic_write_keeps_old_file_on_failure(tmp_path):
+    target = tmp_path / "mesh.vtp"
+    write_atomic(pv.Sphere(), target)
+    before = target.read_bytes()
+    with pytest.raises(Exception):
+        write_atomic(object(), target)
+    assert target.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["mesh.vtp"]
+
+
+def test_read_mesh_formats_and_errors(tmp_path):
+    sphere = pv.Sphere()
+    for ext in (".ply", ".stl", ".obj", ".vtp", ".vtk"):
+        sphere.save(tmp_path / f"s{ext}")
+        assert read_mesh(tmp_path / f"s{ext}").n_cells == sphere.n_cells
+    sphere.cast_to_unstructured_grid().save(tmp_path / "grid.vtu")
+    assert isinstance(read_mesh(tmp_path / "grid.vtu"), pv.PolyData)
+    with pytest.raises(FileNotFoundError):
+        read_mesh(tmp_path / "missing.ply")
