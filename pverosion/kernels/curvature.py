@@ -104,18 +104,6 @@ def _face_tensors(points, faces, normals):
 
 
 @njit(cache=True, error_model="numpy")
-def _rotate_into(u, v, target_normal):
-    """Rotate the frame (u, v) rigidly so that its normal becomes ``target_normal``."""
-    n = v3.cross(u, v)
-    ndot = v3.dot(n, target_normal)
-    if ndot <= -1.0:
-        return v3.scale(u, -1.0), v3.scale(v, -1.0)
-    perp = v3.sub(target_normal, v3.scale(n, ndot))
-    dperp = v3.scale(v3.add(n, target_normal), 1.0 / (1.0 + ndot))
-    return v3.sub(u, v3.scale(dperp, v3.dot(perp, u))), v3.sub(v, v3.scale(dperp, v3.dot(perp, v)))
-
-
-@njit(cache=True, error_model="numpy")
 def _tangent_frame(normal, hint):
     """Unit tangent vectors (u, v) with u x v = normal; u follows ``hint`` when possible."""
     u = v3.cross(hint, normal)
@@ -163,14 +151,23 @@ def _vertex_curvatures(points, faces, normals, data, corner, indptr, face_ids, c
             wt = corner[f, corner_ids[s]] / total
             if wt == 0.0:
                 continue
-            # express the vertex frame in the face plane, then the face tensor in it
-            ft = (data[f, 0], data[f, 1], data[f, 2])
-            fb = (data[f, 3], data[f, 4], data[f, 5])
-            ru, rv = _rotate_into(u, v, (data[f, 6], data[f, 7], data[f, 8]))
-            u1 = v3.dot(ru, ft)
-            v1 = v3.dot(ru, fb)
-            u2 = v3.dot(rv, ft)
-            v2 = v3.dot(rv, fb)
+            # rotate the vertex frame (u, v, nrm) rigidly into the face plane (normal nf) and
+            # express it in the face frame (t, b); perp . u = nf . u because nrm is normal to u
+            t = (data[f, 0], data[f, 1], data[f, 2])
+            b = (data[f, 3], data[f, 4], data[f, 5])
+            nf = (data[f, 6], data[f, 7], data[f, 8])
+            align = 1.0 + v3.dot(nrm, nf)
+            if align <= 1e-12:
+                continue  # face folded fully against the vertex normal: no rotation defined
+            inv = 1.0 / align
+            dt = v3.dot(nrm, t) * inv
+            db = v3.dot(nrm, b) * inv
+            pu = v3.dot(nf, u)
+            pv = v3.dot(nf, v)
+            u1 = v3.dot(u, t) - dt * pu
+            v1 = v3.dot(u, b) - db * pu
+            u2 = v3.dot(v, t) - dt * pv
+            v2 = v3.dot(v, b) - db * pv
             a = data[f, 9]
             b = data[f, 10]
             c = data[f, 11]

@@ -15,10 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-
-from pverosion.kernels.topology import boundary_edges, edge_topology
+from pverosion.kernels import _vec3 as v3
+from pverosion.kernels.topology import halfedge_twins
 
 __all__ = ["ORIENTATIONS", "Orientation", "orient_faces", "winding_number"]
 
@@ -59,21 +57,8 @@ class Orientation:
 
 
 @njit(cache=True, error_model="numpy")
-def _propagate(faces, halfedge_edge, face_count):
+def _propagate(faces, partner):
     n_faces = faces.shape[0]
-    n_edges = face_count.shape[0]
-    he = halfedge_edge.ravel()
-    first = np.full(n_edges, -1, np.int64)
-    partner = np.full(3 * n_faces, -1, np.int64)
-    for h in range(3 * n_faces):
-        e = he[h]
-        if e < 0 or face_count[e] != 2:
-            continue
-        if first[e] < 0:
-            first[e] = h
-        else:
-            partner[h] = first[e]
-            partner[first[e]] = h
     flip = np.zeros(n_faces, np.bool_)
     comp = np.full(n_faces, -1, np.int64)
     stack = np.empty(n_faces, np.int64)
@@ -138,33 +123,68 @@ def winding_number(point, points: np.ndarray, faces: np.ndarray) -> float:
     return float(_winding(np.asarray(point, dtype=np.float64), points, faces))
 
 
-def _closed_volumes(points, faces, component, n_comp, topology):
-    """Signed volume of every component with its holes closed by cones."""
-    origin = points.mean(axis=0)
-    p0, p1, p2 = (points[faces[:, k]] - origin for k in range(3))
-    dets = np.einsum("ij,ij->i", p0, np.cross(p1, p2))
-    volume = np.bincount(component, weights=dets, minlength=n_comp)
-    n_vertices = len(points)
-    rim = boundary_edges(faces, n_vertices, topology)
-    if len(rim):
-        graph = coo_matrix((np.ones(len(rim)), (rim[:, 0], rim[:, 1])), shape=(n_vertices, n_vertices))
-        _, loop_of_vertex = connected_components(graph, directed=False)
-        _, loop = np.unique(loop_of_vertex[rim[:, 0]], return_inverse=True)
-        n_loops = int(loop.max()) + 1
-        counts = np.bincount(loop, minlength=n_loops)[:, None]
-        apex = np.stack(
-            [np.bincount(loop, weights=points[rim[:, 0], d], minlength=n_loops) for d in range(3)], axis=1
-        ) / counts
-        a, b, c = points[rim[:, 1]] - origin, points[rim[:, 0]] - origin, apex[loop] - origin
-        cone = np.einsum("ij,ij->i", a, np.cross(b, c))
-        # the component of each rim edge: that of a face using its first vertex on the rim
-        face_of_vertex = np.full(n_vertices, -1, np.int64)
-        face_of_vertex[faces.ravel()] = np.repeat(np.arange(len(faces)), 3)
-        volume += np.bincount(component[face_of_vertex[rim[:, 0]]], weights=cone, minlength=n_comp)
+@njit(cache=True, error_model="numpy")
+def _find(parent, v):
+    while parent[v] != v:
+        parent[v] = parent[parent[v]]
+        v = parent[v]
+    return v
+
+
+@njit(cache=True, error_model="numpy")
+def _closed_volumes(points, faces, flip, component, n_comp, others):
+    """Signed volume of every component, with each hole closed by a cone to its rim's centroid."""
+    n_vertices = points.shape[0]
+    origin = np.zeros(3)
+    for v in range(n_vertices):
+        origin += points[v]
+    origin /= n_vertices
+    volume = np.zeros(n_comp)
+    parent = np.arange(n_vertices)
+    for f in range(faces.shape[0]):
+        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        if flip[f]:
+            i1, i2 = i2, i1
+        a = v3.sub(v3.row(points, i0), origin)
+        b = v3.sub(v3.row(points, i1), origin)
+        c = v3.sub(v3.row(points, i2), origin)
+        volume[component[f]] += v3.dot(a, v3.cross(b, c))
+        for k in range(3):
+            if others[3 * f + k] == 0:
+                ra = _find(parent, faces[f, k])
+                rb = _find(parent, faces[f, (k + 1) % 3])
+                parent[ra] = rb
+    # centroid of each hole's rim, then a cone from it over every rim edge
+    centre = np.zeros((n_vertices, 3))
+    count = np.zeros(n_vertices)
+    for h in range(others.shape[0]):
+        if others[h] == 0:
+            a = faces[h // 3, h % 3]
+            r = _find(parent, a)
+            centre[r] += points[a]
+            count[r] += 1.0
+    for h in range(others.shape[0]):
+        if others[h] == 0:
+            f = h // 3
+            a = faces[f, h % 3]
+            b = faces[f, (h % 3 + 1) % 3]
+            if flip[f]:
+                a, b = b, a
+            r = _find(parent, a)
+            apex = v3.sub(v3.scale(v3.row(centre, r), 1.0 / count[r]), origin)
+            pa = v3.sub(v3.row(points, a), origin)
+            pb = v3.sub(v3.row(points, b), origin)
+            volume[component[f]] += v3.dot(pb, v3.cross(pa, apex))
     return volume / 6.0
 
 
-def orient_faces(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward") -> Orientation:
+def orient_faces(
+    points: np.ndarray,
+    faces: np.ndarray,
+    *,
+    mode: str = "outward",
+    incidence: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> Orientation:
     """Orient faces consistently, with normals pointing out of (or into) the solid.
 
     Parameters
@@ -174,6 +194,8 @@ def orient_faces(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward"
     mode : {"outward", "inward", "keep"}
         ``"outward"`` makes convex regions have positive mean curvature;
         ``"inward"`` is its mirror; ``"keep"`` returns the faces unchanged.
+    incidence : tuple, optional
+        Reuse the result of :func:`~pverosion.kernels.topology.vertex_face_incidence`.
 
     Returns
     -------
@@ -187,15 +209,14 @@ def orient_faces(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward"
     """
     if mode not in ORIENTATIONS:
         raise ValueError(f"orientation must be one of {ORIENTATIONS}; got {mode!r}")
-    n_vertices = len(points)
-    topo = edge_topology(faces, n_vertices)
-    flip, component = _propagate(faces, topo.halfedge_edge, topo.face_count)
+    partner, others = halfedge_twins(faces, len(points), incidence)
+    flip, component = _propagate(faces, partner)
     n_comp = int(component.max()) + 1
     if mode == "keep":
         return Orientation(faces, np.zeros(len(faces), bool), component, mode)
 
     oriented = _apply(faces, flip)
-    volume = _closed_volumes(points, oriented, component, n_comp, topo)
+    volume = _closed_volumes(points, faces, flip, component, n_comp, others)
     extent = np.ptp(points, axis=0).max()
     decided = np.abs(volume) > 1e-9 * extent**3
     turn = decided & (volume < 0)

@@ -10,12 +10,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 __all__ = [
     "EdgeTopology",
     "edge_topology",
     "vertex_face_incidence",
+    "halfedge_twins",
     "one_ring",
     "boundary_edges",
     "boundary_vertices",
@@ -162,6 +163,62 @@ def vertex_face_incidence(
         Corner (0, 1 or 2) at which ``v`` appears in each listed face.
     """
     return _incidence(faces, int(n_vertices))
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _twins(faces, indptr, face_ids, corner_ids):
+    n_faces = faces.shape[0]
+    partner = np.full(3 * n_faces, -1, np.int64)
+    others = np.zeros(3 * n_faces, np.int64)
+    for f in prange(n_faces):
+        for k in range(3):
+            a = faces[f, k]
+            b = faces[f, (k + 1) % 3]
+            if a == b:
+                continue
+            found = -1
+            count = 0
+            for s in range(indptr[a], indptr[a + 1]):
+                g = face_ids[s]
+                if g == f:
+                    continue
+                c = corner_ids[s]
+                if faces[g, (c + 1) % 3] == b:
+                    found = 3 * g + c  # g runs a -> b too
+                    count += 1
+                elif faces[g, (c + 2) % 3] == b:
+                    found = 3 * g + (c + 2) % 3  # g runs b -> a
+                    count += 1
+            others[3 * f + k] = count
+            if count == 1:
+                partner[3 * f + k] = found
+    return partner, others
+
+
+def halfedge_twins(
+    faces: np.ndarray, n_vertices: int, incidence: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The other half-edge of every edge, from the vertex-face incidence.
+
+    Half-edge ``h = 3 f + k`` runs from ``faces[f, k]`` to ``faces[f, (k + 1) % 3]``.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64
+    n_vertices : int
+    incidence : tuple, optional
+        Reuse the result of :func:`vertex_face_incidence`.
+
+    Returns
+    -------
+    partner : numpy.ndarray, shape (3F,), int64
+        The twin half-edge where exactly two faces share the edge, else ``-1``.
+    others : numpy.ndarray, shape (3F,), int64
+        How many other faces use the edge: 0 on the boundary, 1 inside a
+        manifold, 2 or more at non-manifold edges.
+    """
+    indptr, face_ids, corner_ids = incidence if incidence is not None else vertex_face_incidence(faces, n_vertices)
+    return _twins(faces, indptr, face_ids, corner_ids)
 
 
 def one_ring(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
