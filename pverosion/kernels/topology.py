@@ -167,31 +167,38 @@ def vertex_face_incidence(
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def _twins(faces, indptr, face_ids, corner_ids):
-    n_faces = faces.shape[0]
-    partner = np.full(3 * n_faces, -1, np.int64)
-    others = np.zeros(3 * n_faces, np.int64)
-    for f in prange(n_faces):
-        for k in range(3):
-            a = faces[f, k]
-            b = faces[f, (k + 1) % 3]
-            if a == b:
+    n_vertices = indptr.shape[0] - 1
+    n_slots = face_ids.shape[0]
+    # the vertices after and before v in each face around v, stored contiguously per vertex
+    after = np.empty(n_slots, np.int64)
+    before = np.empty(n_slots, np.int64)
+    for s in prange(n_slots):
+        g = face_ids[s]
+        c = corner_ids[s]
+        after[s] = faces[g, (c + 1) % 3]
+        before[s] = faces[g, (c + 2) % 3]
+    partner = np.full(3 * faces.shape[0], -1, np.int64)
+    others = np.zeros(3 * faces.shape[0], np.int64)
+    for a in prange(n_vertices):
+        for s in range(indptr[a], indptr[a + 1]):
+            b = after[s]
+            if b == a:
                 continue
             found = -1
             count = 0
-            for s in range(indptr[a], indptr[a + 1]):
-                g = face_ids[s]
-                if g == f:
+            for t in range(indptr[a], indptr[a + 1]):
+                if t == s:
                     continue
-                c = corner_ids[s]
-                if faces[g, (c + 1) % 3] == b:
-                    found = 3 * g + c  # g runs a -> b too
+                if after[t] == b:
+                    found = 3 * face_ids[t] + corner_ids[t]  # runs a -> b too
                     count += 1
-                elif faces[g, (c + 2) % 3] == b:
-                    found = 3 * g + (c + 2) % 3  # g runs b -> a
+                elif before[t] == b:
+                    found = 3 * face_ids[t] + (corner_ids[t] + 2) % 3  # runs b -> a
                     count += 1
-            others[3 * f + k] = count
+            h = 3 * face_ids[s] + corner_ids[s]
+            others[h] = count
             if count == 1:
-                partner[3 * f + k] = found
+                partner[h] = found
     return partner, others
 
 
