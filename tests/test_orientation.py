@@ -1,5 +1,4 @@
 import numpy as np
-import pyvista as pv
 import pytest
 from conftest import icosphere, height_field
 
