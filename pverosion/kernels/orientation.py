@@ -215,13 +215,13 @@ def orient_faces(
     if mode == "keep":
         return Orientation(faces, np.zeros(len(faces), bool), component, mode)
 
-    oriented = _apply(faces, flip)
     volume = _closed_volumes(points, faces, flip, component, n_comp, others)
     extent = np.ptp(points, axis=0).max()
     decided = np.abs(volume) > 1e-9 * extent**3
     turn = decided & (volume < 0)
     if n_comp > 1:
-        turn ^= _cavity_walls(points, _apply(oriented, turn[component]), component, n_comp, decided)
+        outward = _apply(faces, flip ^ turn[component])
+        turn ^= _cavity_walls(points, outward, component, n_comp, decided)
     if mode == "inward":
         turn ^= decided
     flip ^= turn[component]
