@@ -14,7 +14,7 @@ from pathlib import Path
 from pverosion.filters import ALL_FILTERS
 from pverosion.filters.base import ErosionFilter
 
-__all__ = ["main", "build_parser"]
+__all__ = ["build_parser", "main"]
 
 
 def _command_name(filter_cls: type[ErosionFilter]) -> str:

@@ -9,7 +9,7 @@ from xml.sax.saxutils import quoteattr
 
 import pyvista as pv
 
-__all__ = ["read_mesh", "write_atomic", "atomic_path", "TimeSeriesWriter", "EXTENSIONS"]
+__all__ = ["EXTENSIONS", "TimeSeriesWriter", "atomic_path", "read_mesh", "write_atomic"]
 
 EXTENSIONS = {
     "PolyData": ".vtp",

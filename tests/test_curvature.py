@@ -5,7 +5,8 @@ from conftest import height_field, icosphere
 
 import pverosion
 from pverosion.examples import load_cylinder, load_torus
-from pverosion.kernels import principal_curvatures
+from pverosion.kernels import InvalidMeshError, principal_curvatures
+from pverosion.kernels.curvature import CurvatureOperator
 
 
 def test_sphere_mean_and_gaussian_curvature():
@@ -100,3 +101,32 @@ def test_bunny_sign_agrees_with_vtk_curvatures(bunny):
     agree = np.sign(ours[strong]) == np.sign(theirs[strong])
     assert strong.sum() > 0.5 * bunny.n_points
     assert agree.mean() >= 0.9
+
+
+def test_operator_reuses_connectivity_and_matches_one_shot():
+    s = icosphere(1.0, 4)
+    faces = s.regular_faces
+    rng = np.random.default_rng(3)
+    moved = s.points * (1.0 + 0.05 * rng.random((s.n_points, 1)))
+    op = CurvatureOperator(faces, s.n_points)
+    a, b = op(moved), principal_curvatures(moved, faces)
+    assert np.array_equal(a.k1, b.k1) and np.array_equal(a.k2, b.k2)
+    assert np.allclose(op(2.0 * s.points).mean, 0.5, rtol=1e-6)
+    with pytest.raises(InvalidMeshError, match="shape"):
+        op(s.points[:-1])
+
+
+def test_result_is_independent_of_thread_count():
+    import numba
+
+    s = icosphere(1.0, 4)
+    p = s.points * (1.0 + 0.1 * np.random.default_rng(0).random((s.n_points, 1)))
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = principal_curvatures(p, s.regular_faces)
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        many = principal_curvatures(p, s.regular_faces)
+    finally:
+        numba.set_num_threads(before)
+    assert np.array_equal(one.k1, many.k1) and np.array_equal(one.direction1, many.direction1)

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 import pyvista as pv
-from vtkmodules.vtkFiltersSources import vtkSphereSource
 from vtkmodules.vtkFiltersCore import vtkTriangleFilter
+from vtkmodules.vtkFiltersSources import vtkSphereSource
 
 from pverosion.filters import ALL_FILTERS, Curvature
 from pverosion.kernels import InvalidMeshError

@@ -1,7 +1,11 @@
 import numpy as np
 import pytest
 
-from pverosion.kernels import normalize_curvature, normalize_shifted, normalize_symmetric
+from pverosion.kernels import (
+    normalize_curvature,
+    normalize_shifted,
+    normalize_symmetric,
+)
 
 
 def test_symmetric_keeps_zero_and_sign():

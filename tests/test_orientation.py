@@ -1,6 +1,6 @@
 import numpy as np
 import pytest
-from conftest import icosphere, height_field
+from conftest import height_field, icosphere
 
 from pverosion.kernels import orient_faces, signed_volume, winding_number
 

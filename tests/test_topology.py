@@ -1,4 +1,5 @@
 import numpy as np
+import pyvista as pv
 import scipy.sparse as sp
 from conftest import icosphere
 from scipy.sparse.csgraph import connected_components
@@ -9,6 +10,7 @@ from pverosion.kernels import (
     boundary_vertices,
     edge_topology,
     laplacian_vectors,
+    locality_order,
     one_ring,
     uniform_laplacian,
     vertex_face_incidence,
@@ -82,3 +84,13 @@ def test_uniform_laplacian_is_mean_of_neighbours_minus_vertex():
     # on a sphere L points inward, along -normal
     radial = np.einsum("ij,ij->i", vec, s.points / 2.0)
     assert np.all(radial < 0)
+
+
+def test_locality_order_sorts_faces_by_smallest_vertex():
+    rng = np.random.default_rng(1)
+    s = pv.Icosphere(nsub=3)
+    f = s.regular_faces[rng.permutation(s.n_cells)].astype(np.int64)
+    order = locality_order(f, s.n_points)
+    assert np.array_equal(np.sort(order), np.arange(len(f)))
+    lo = f[order].min(axis=1)
+    assert np.all(np.diff(lo) >= 0)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pyvista as pv
 
-__all__ = ["load_rock", "load_torus", "load_cylinder", "periodic_grid_surface"]
+__all__ = ["load_cylinder", "load_rock", "load_torus", "periodic_grid_surface"]
 
 
 def _triangulate_grid(n_u: int, n_v: int, *, wrap_u: bool, wrap_v: bool) -> np.ndarray:

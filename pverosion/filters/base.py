@@ -21,7 +21,7 @@ from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
 
 from pverosion.kernels.validation import InvalidMeshError
 
-__all__ = ["Param", "ErosionFilter", "polydata_triangles", "set_point_array", "set_field_value", "replace_triangles"]
+__all__ = ["ErosionFilter", "Param", "polydata_triangles", "replace_triangles", "set_field_value", "set_point_array"]
 
 
 @dataclass(frozen=True)
@@ -147,7 +147,7 @@ class ErosionFilter(VTKPythonAlgorithmBase):
         """All option values by snake_case name."""
         return dict(self._values)
 
-    def RequestData(self, request, in_info, out_info):  # noqa: N802 (VTK API)
+    def RequestData(self, request, in_info, out_info):
         """Run :meth:`execute` on the input and output data objects."""
         self._error = None
         try:

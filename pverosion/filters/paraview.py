@@ -13,7 +13,7 @@ from xml.sax.saxutils import escape, quoteattr
 
 from pverosion.filters.base import ErosionFilter, Param
 
-__all__ = ["make_proxy", "MENU_CATEGORY"]
+__all__ = ["MENU_CATEGORY", "make_proxy"]
 
 MENU_CATEGORY = "pverosion"
 

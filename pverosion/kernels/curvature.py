@@ -16,11 +16,17 @@ import numpy as np
 from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
-from pverosion.kernels.geometry import corner_areas, vertex_normals
-from pverosion.kernels.topology import vertex_face_incidence
-from pverosion.kernels.validation import as_triangle_mesh
+from pverosion.kernels._scatter import CHUNKS, chunk_range
+from pverosion.kernels.geometry import meyer_corner_areas, vertex_normals
+from pverosion.kernels.topology import locality_order
+from pverosion.kernels.validation import (
+    InvalidMeshError,
+    as_faces,
+    as_points,
+    as_triangle_mesh,
+)
 
-__all__ = ["CurvatureResult", "principal_curvatures"]
+__all__ = ["CurvatureOperator", "CurvatureResult", "principal_curvatures"]
 
 
 @dataclass(frozen=True)
@@ -57,123 +63,146 @@ class CurvatureResult:
         return self.k1 * self.k2
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
-def _face_tensors(points, faces, normals):
-    """Least-squares second fundamental form of each face in its own frame."""
-    n_faces = faces.shape[0]
-    # per face: tangent t (0:3), bitangent b (3:6), normal n (6:9), tensor (9:12)
-    data = np.zeros((n_faces, 12))
-    for f in prange(n_faces):
-        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-        p0, p1, p2 = v3.row(points, i0), v3.row(points, i1), v3.row(points, i2)
-        # edge j is opposite corner j; the normal difference is taken along the same direction
-        e0, e1, e2 = v3.sub(p2, p1), v3.sub(p0, p2), v3.sub(p1, p0)
-        n0, n1, n2 = v3.row(normals, i0), v3.row(normals, i1), v3.row(normals, i2)
-        dn0, dn1, dn2 = v3.sub(n2, n1), v3.sub(n0, n2), v3.sub(n1, n0)
-        n = v3.cross(e0, e1)
-        nn = v3.norm(n)
-        if nn <= 1e-12 * (v3.dot(e0, e0) + v3.dot(e1, e1) + v3.dot(e2, e2)):
-            continue  # degenerate face: contributes nothing
-        t = v3.scale(e0, 1.0 / v3.norm(e0))
-        n = v3.scale(n, 1.0 / nn)
-        b = v3.cross(n, t)
-        u0, u1, u2 = v3.dot(e0, t), v3.dot(e1, t), v3.dot(e2, t)
-        w0, w1, w2 = v3.dot(e0, b), v3.dot(e1, b), v3.dot(e2, b)
-        a0, a1, a2 = v3.dot(dn0, t), v3.dot(dn1, t), v3.dot(dn2, t)
-        c0, c1, c2 = v3.dot(dn0, b), v3.dot(dn1, b), v3.dot(dn2, b)
-        s_uu = u0 * u0 + u1 * u1 + u2 * u2
-        s_uv = u0 * w0 + u1 * w1 + u2 * w2
-        s_vv = w0 * w0 + w1 * w1 + w2 * w2
-        m0 = a0 * u0 + a1 * u1 + a2 * u2
-        m1 = a0 * w0 + a1 * w1 + a2 * w2 + c0 * u0 + c1 * u1 + c2 * u2
-        m2 = c0 * w0 + c1 * w1 + c2 * w2
-        s_mid = s_uu + s_vv
-        # Cramer's rule on [[s_uu, s_uv, 0], [s_uv, s_mid, s_uv], [0, s_uv, s_vv]] x = m
-        minor = s_mid * s_vv - s_uv * s_uv
-        det = s_uu * minor - s_uv * s_uv * s_vv
-        if det == 0.0:
-            continue
-        for d in range(3):
-            data[f, d] = t[d]
-            data[f, 3 + d] = b[d]
-            data[f, 6 + d] = n[d]
-        data[f, 9] = (m0 * minor - s_uv * (m1 * s_vv - s_uv * m2)) / det
-        data[f, 10] = (s_uu * (m1 * s_vv - s_uv * m2) - m0 * s_uv * s_vv) / det
-        data[f, 11] = (s_uu * (s_mid * m2 - s_uv * m1) - s_uv * s_uv * m2 + m0 * s_uv * s_uv) / det
-    return data
-
-
 @njit(cache=True, error_model="numpy")
-def _tangent_frame(normal, hint):
-    """Unit tangent vectors (u, v) with u x v = normal; u follows ``hint`` when possible."""
-    u = v3.cross(hint, normal)
-    lu = v3.norm(u)
-    if lu < 1e-12 * max(v3.norm(hint), 1e-300):
-        ax, ay, az = abs(normal[0]), abs(normal[1]), abs(normal[2])
-        if ax <= ay and ax <= az:
-            axis = (1.0, 0.0, 0.0)
-        elif ay <= az:
-            axis = (0.0, 1.0, 0.0)
-        else:
-            axis = (0.0, 0.0, 1.0)
-        u = v3.cross(axis, normal)
-        lu = v3.norm(u)
-    u = v3.scale(u, 1.0 / lu)
+def _normal_frame(normal):
+    """Unit tangents (u, v) with u x v = normal, a fixed function of the normal alone."""
+    ax, ay, az = abs(normal[0]), abs(normal[1]), abs(normal[2])
+    if ax <= ay and ax <= az:
+        u = (0.0, -normal[2], normal[1])  # (1, 0, 0) x n
+    elif ay <= az:
+        u = (normal[2], 0.0, -normal[0])  # (0, 1, 0) x n
+    else:
+        u = (-normal[1], normal[0], 0.0)  # (0, 0, 1) x n
+    u = v3.scale(u, 1.0 / v3.norm(u))
     return u, v3.cross(normal, u)
 
 
+@njit(cache=True, error_model="numpy")
+def _fit_face_tensor(e0, e1, e2, dn0, dn1, dn2):
+    """Least-squares second fundamental form of one face from its edges and normal differences.
+
+    Returns ``(ok, t, b, n, a, bb, c)``: the face frame (tangent ``t`` along
+    ``e0``, bitangent ``b``, unit normal ``n``) and the tensor
+    ``[[a, bb], [bb, c]]`` in it; ``ok`` is False for a degenerate face.
+    """
+    zero = (0.0, 0.0, 0.0)
+    n = v3.cross(e0, e1)
+    nn = v3.norm(n)
+    if nn <= 1e-12 * (v3.dot(e0, e0) + v3.dot(e1, e1) + v3.dot(e2, e2)):
+        return False, zero, zero, zero, 0.0, 0.0, 0.0
+    t = v3.scale(e0, 1.0 / v3.norm(e0))
+    n = v3.scale(n, 1.0 / nn)
+    b = v3.cross(n, t)
+    u0, u1, u2 = v3.dot(e0, t), v3.dot(e1, t), v3.dot(e2, t)
+    w0, w1, w2 = v3.dot(e0, b), v3.dot(e1, b), v3.dot(e2, b)
+    a0, a1, a2 = v3.dot(dn0, t), v3.dot(dn1, t), v3.dot(dn2, t)
+    c0, c1, c2 = v3.dot(dn0, b), v3.dot(dn1, b), v3.dot(dn2, b)
+    s_uu = u0 * u0 + u1 * u1 + u2 * u2
+    s_uv = u0 * w0 + u1 * w1 + u2 * w2
+    s_vv = w0 * w0 + w1 * w1 + w2 * w2
+    m0 = a0 * u0 + a1 * u1 + a2 * u2
+    m1 = a0 * w0 + a1 * w1 + a2 * w2 + c0 * u0 + c1 * u1 + c2 * u2
+    m2 = c0 * w0 + c1 * w1 + c2 * w2
+    s_mid = s_uu + s_vv
+    # Cramer's rule on [[s_uu, s_uv, 0], [s_uv, s_mid, s_uv], [0, s_uv, s_vv]] x = m
+    minor = s_mid * s_vv - s_uv * s_uv
+    det = s_uu * minor - s_uv * s_uv * s_vv
+    if det == 0.0:
+        return False, zero, zero, zero, 0.0, 0.0, 0.0
+    ta = (m0 * minor - s_uv * (m1 * s_vv - s_uv * m2)) / det
+    tb = (s_uu * (m1 * s_vv - s_uv * m2) - m0 * s_uv * s_vv) / det
+    tc = (s_uu * (s_mid * m2 - s_uv * m1) - s_uv * s_uv * m2 + m0 * s_uv * s_uv) / det
+    return True, t, b, n, ta, tb, tc
+
+
+@njit(cache=True, error_model="numpy")
+def _to_vertex_frame(nrm, t, b, nf, ta, tb, tc):
+    """Tensor ``[[ta, tb], [tb, tc]]`` of a face frame expressed in the frame of a vertex.
+
+    The vertex frame (u, v, nrm) of :func:`_normal_frame` is rotated rigidly
+    into the face plane (normal ``nf``) and expressed in the face frame (t, b).
+    Returns (ku, kuv, kv).
+    """
+    align = 1.0 + v3.dot(nrm, nf)
+    if align <= 1e-12 or v3.dot(nrm, nrm) == 0.0:
+        return 0.0, 0.0, 0.0  # no vertex normal, or the face is folded fully against it
+    u, v = _normal_frame(nrm)
+    inv = 1.0 / align
+    dt = v3.dot(nrm, t) * inv
+    db = v3.dot(nrm, b) * inv
+    # perp . u = nf . u because nrm is normal to u
+    pu = v3.dot(nf, u)
+    pv = v3.dot(nf, v)
+    u1 = v3.dot(u, t) - dt * pu
+    v1 = v3.dot(u, b) - db * pu
+    u2 = v3.dot(v, t) - dt * pv
+    v2 = v3.dot(v, b) - db * pv
+    ku = ta * u1 * u1 + 2.0 * tb * u1 * v1 + tc * v1 * v1
+    kuv = ta * u1 * u2 + tb * (u1 * v2 + u2 * v1) + tc * v1 * v2
+    kv = ta * u2 * u2 + 2.0 * tb * u2 * v2 + tc * v2 * v2
+    return ku, kuv, kv
+
+
+@njit(cache=True, error_model="numpy")
+def _add_corner(acc, i, w, tensor):
+    acc[i, 0] += w * tensor[0]
+    acc[i, 1] += w * tensor[1]
+    acc[i, 2] += w * tensor[2]
+    acc[i, 3] += w
+
+
 @njit(cache=True, error_model="numpy", parallel=True)
-def _vertex_curvatures(points, faces, normals, data, corner, indptr, face_ids, corner_ids):
-    n_vertices = points.shape[0]
+def _vertex_tensors(points, faces, normals):
+    """Per chunk of faces, the corner-area-weighted sums of the face tensors in the
+    vertex frames, and the weight sums: shape (CHUNKS, V, 4) holding (ku, kuv, kv, w)."""
+    acc = np.zeros((CHUNKS, points.shape[0], 4))
+    for c in prange(CHUNKS):
+        start, stop = chunk_range(faces.shape[0], c)
+        for f in range(start, stop):
+            i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+            p0, p1, p2 = v3.row(points, i0), v3.row(points, i1), v3.row(points, i2)
+            # edge j is opposite corner j; the normal difference is taken along the same direction
+            e0, e1, e2 = v3.sub(p2, p1), v3.sub(p0, p2), v3.sub(p1, p0)
+            n0, n1, n2 = v3.row(normals, i0), v3.row(normals, i1), v3.row(normals, i2)
+            w0, w1, w2 = meyer_corner_areas(e0, e1, e2)
+            ok, t, b, nf, ta, tb, tc = _fit_face_tensor(
+                e0, e1, e2, v3.sub(n2, n1), v3.sub(n0, n2), v3.sub(n1, n0)
+            )
+            if not ok:
+                # degenerate face: its (zero) area still counts, its tensor does not
+                ta = tb = tc = 0.0
+            _add_corner(acc[c], i0, w0, _to_vertex_frame(n0, t, b, nf, ta, tb, tc))
+            _add_corner(acc[c], i1, w1, _to_vertex_frame(n1, t, b, nf, ta, tb, tc))
+            _add_corner(acc[c], i2, w2, _to_vertex_frame(n2, t, b, nf, ta, tb, tc))
+    return acc
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def _vertex_curvatures(normals, acc):
+    """Average the corner tensors of every vertex and diagonalise them."""
+    n_vertices = normals.shape[0]
     k1 = np.zeros(n_vertices)
     k2 = np.zeros(n_vertices)
     d1 = np.zeros((n_vertices, 3))
     d2 = np.zeros((n_vertices, 3))
     area = np.zeros(n_vertices)
     for i in prange(n_vertices):
-        start = indptr[i]
-        stop = indptr[i + 1]
-        nrm = v3.row(normals, i)
-        total = 0.0
-        for s in range(start, stop):
-            total += corner[face_ids[s], corner_ids[s]]
+        ku = acc[0, i, 0]
+        kuv = acc[0, i, 1]
+        kv = acc[0, i, 2]
+        total = acc[0, i, 3]
+        for c in range(1, CHUNKS):
+            ku += acc[c, i, 0]
+            kuv += acc[c, i, 1]
+            kv += acc[c, i, 2]
+            total += acc[c, i, 3]
         area[i] = total
+        nrm = v3.row(normals, i)
         if total <= 0.0 or v3.dot(nrm, nrm) == 0.0:
             continue
-        f0 = face_ids[start]
-        hint = v3.sub(v3.row(points, faces[f0, (corner_ids[start] + 1) % 3]), v3.row(points, i))
-        u, v = _tangent_frame(nrm, hint)
-        ku = 0.0
-        kuv = 0.0
-        kv = 0.0
-        for s in range(start, stop):
-            f = face_ids[s]
-            wt = corner[f, corner_ids[s]] / total
-            if wt == 0.0:
-                continue
-            # rotate the vertex frame (u, v, nrm) rigidly into the face plane (normal nf) and
-            # express it in the face frame (t, b); perp . u = nf . u because nrm is normal to u
-            t = (data[f, 0], data[f, 1], data[f, 2])
-            b = (data[f, 3], data[f, 4], data[f, 5])
-            nf = (data[f, 6], data[f, 7], data[f, 8])
-            align = 1.0 + v3.dot(nrm, nf)
-            if align <= 1e-12:
-                continue  # face folded fully against the vertex normal: no rotation defined
-            inv = 1.0 / align
-            dt = v3.dot(nrm, t) * inv
-            db = v3.dot(nrm, b) * inv
-            pu = v3.dot(nf, u)
-            pv = v3.dot(nf, v)
-            u1 = v3.dot(u, t) - dt * pu
-            v1 = v3.dot(u, b) - db * pu
-            u2 = v3.dot(v, t) - dt * pv
-            v2 = v3.dot(v, b) - db * pv
-            a = data[f, 9]
-            b = data[f, 10]
-            c = data[f, 11]
-            ku += wt * (a * u1 * u1 + 2.0 * b * u1 * v1 + c * v1 * v1)
-            kuv += wt * (a * u1 * u2 + b * (u1 * v2 + u2 * v1) + c * v1 * v2)
-            kv += wt * (a * u2 * u2 + 2.0 * b * u2 * v2 + c * v2 * v2)
+        ku /= total
+        kuv /= total
+        kv /= total
         # Jacobi rotation diagonalising [[ku, kuv], [kuv, kv]]
         cs = 1.0
         sn = 0.0
@@ -188,6 +217,7 @@ def _vertex_curvatures(points, faces, normals, data, corner, indptr, face_ids, c
             sn = tt * cs
         a1 = ku - tt * kuv
         a2 = kv + tt * kuv
+        u, v = _normal_frame(nrm)
         p1 = v3.sub(v3.scale(u, cs), v3.scale(v, sn))
         if a1 < a2:
             a1, a2 = a2, a1
@@ -197,6 +227,56 @@ def _vertex_curvatures(points, faces, normals, data, corner, indptr, face_ids, c
         v3.store(d1, i, p1)
         v3.store(d2, i, v3.cross(nrm, p1))
     return k1, k2, d1, d2, area
+
+
+class CurvatureOperator:
+    """Curvature estimator bound to one mesh connectivity.
+
+    Building it validates the faces and sorts them for memory locality once;
+    calling it with new point coordinates costs only the per-step passes.
+    Results are bit-identical whatever the number of threads. Use it when the points move but the faces stay
+    (iterative erosion), or call :func:`principal_curvatures` for one shot.
+
+    Parameters
+    ----------
+    faces : array_like, shape (F, 3)
+        Triangles, oriented consistently; the curvature sign follows the
+        normals they imply (see :func:`pverosion.kernels.orientation.orient_faces`).
+    n_vertices : int
+        Number of mesh vertices V.
+
+    Examples
+    --------
+    >>> import numpy as np, pyvista as pv
+    >>> sphere = pv.Icosphere(radius=2.0, nsub=4)
+    >>> op = CurvatureOperator(sphere.regular_faces, sphere.n_points)
+    >>> bool(np.allclose(op(sphere.points).mean, 0.5, rtol=1e-6))
+    True
+    >>> bool(np.allclose(op(3.0 * sphere.points).mean, 1 / 6, rtol=1e-6))
+    True
+    """
+
+    def __init__(self, faces, n_vertices: int) -> None:
+        n_vertices = int(n_vertices)
+        if n_vertices <= 0:
+            raise InvalidMeshError("mesh is empty: it has no points")
+        fcs = as_faces(faces, n_vertices)
+        self.n_vertices = n_vertices
+        self.faces = fcs[locality_order(fcs, n_vertices)]
+
+    def __call__(self, points, *, normals=None) -> CurvatureResult:
+        """Principal curvatures at ``points`` (V, 3); ``normals`` (V, 3) optional, else Max-weighted."""
+        pts = as_points(points)
+        if pts.shape[0] != self.n_vertices:
+            raise InvalidMeshError(f"points must have shape ({self.n_vertices}, 3); got {pts.shape}")
+        if normals is None:
+            nrm = vertex_normals(pts, self.faces, weighting="max")
+        else:
+            nrm = np.ascontiguousarray(normals, dtype=np.float64)
+            if nrm.shape != pts.shape:
+                raise ValueError(f"normals must have shape {pts.shape}; got {nrm.shape}")
+        k1, k2, d1, d2, area = _vertex_curvatures(nrm, _vertex_tensors(pts, self.faces, nrm))
+        return CurvatureResult(k1=k1, k2=k2, direction1=d1, direction2=d2, normals=nrm, point_areas=area)
 
 
 def principal_curvatures(points, faces, *, normals=None) -> CurvatureResult:
@@ -221,6 +301,7 @@ def principal_curvatures(points, faces, *, normals=None) -> CurvatureResult:
     Works on open meshes, meshes with holes and non-manifold spots: degenerate
     faces are skipped, and vertices without any non-degenerate face (or
     unreferenced vertices) get zero curvature, so every value is finite.
+    For repeated calls on one connectivity, build a :class:`CurvatureOperator`.
 
     Examples
     --------
@@ -233,16 +314,4 @@ def principal_curvatures(points, faces, *, normals=None) -> CurvatureResult:
     True
     """
     pts, fcs = as_triangle_mesh(points, faces)
-    if normals is None:
-        nrm = vertex_normals(pts, fcs, weighting="max")
-    else:
-        nrm = np.ascontiguousarray(normals, dtype=np.float64)
-        if nrm.shape != pts.shape:
-            raise ValueError(f"normals must have shape {pts.shape}; got {nrm.shape}")
-    corner = corner_areas(pts, fcs)
-    face_data = _face_tensors(pts, fcs, nrm)
-    indptr, face_ids, corner_ids = vertex_face_incidence(fcs, len(pts))
-    k1, k2, d1, d2, area = _vertex_curvatures(
-        pts, fcs, nrm, face_data, corner, indptr, face_ids, corner_ids
-    )
-    return CurvatureResult(k1=k1, k2=k2, direction1=d1, direction2=d2, normals=nrm, point_areas=area)
+    return CurvatureOperator(fcs, len(pts))(pts, normals=normals)

@@ -10,15 +10,17 @@ import numpy as np
 from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._scatter import CHUNKS, chunk_range
 from pverosion.kernels.topology import edge_topology
 
 __all__ = [
-    "face_normals",
-    "vertex_normals",
-    "corner_areas",
-    "point_areas",
     "average_edge_length",
+    "corner_areas",
+    "face_normals",
+    "meyer_corner_areas",
+    "point_areas",
     "signed_volume",
+    "vertex_normals",
 ]
 
 _NORMAL_WEIGHTINGS = ("area", "max")
@@ -47,32 +49,44 @@ def face_normals(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.
     return normals, 0.5 * double_area
 
 
-@njit(cache=True, error_model="numpy")
-def _accumulate_normals(points, faces, n_vertices, max_weights):
+@njit(cache=True, error_model="numpy", parallel=True)
+def _scatter_normals(points, faces, max_weights):
+    n_vertices = points.shape[0]
+    acc = np.zeros((CHUNKS, n_vertices, 3))
+    for c in prange(CHUNKS):
+        start, stop = chunk_range(faces.shape[0], c)
+        for f in range(start, stop):
+            i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+            p0, p1, p2 = v3.row(points, i0), v3.row(points, i1), v3.row(points, i2)
+            a, b, e = v3.sub(p1, p0), v3.sub(p2, p1), v3.sub(p0, p2)
+            n = v3.cross(a, b)
+            w0 = w1 = w2 = 1.0
+            if max_weights:
+                la, lb, le = v3.dot(a, a), v3.dot(b, b), v3.dot(e, e)
+                if la * lb * le == 0.0:
+                    continue
+                w0, w1, w2 = 1.0 / (la * le), 1.0 / (la * lb), 1.0 / (lb * le)
+            for d in range(3):
+                acc[c, i0, d] += w0 * n[d]
+                acc[c, i1, d] += w1 * n[d]
+                acc[c, i2, d] += w2 * n[d]
     out = np.zeros((n_vertices, 3))
-    for f in range(faces.shape[0]):
-        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-        p0, p1, p2 = v3.row(points, i0), v3.row(points, i1), v3.row(points, i2)
-        a, b, c = v3.sub(p1, p0), v3.sub(p2, p1), v3.sub(p0, p2)
-        n = v3.cross(a, b)
-        w0 = w1 = w2 = 1.0
-        if max_weights:
-            la, lb, lc = v3.dot(a, a), v3.dot(b, b), v3.dot(c, c)
-            if la * lb * lc == 0.0:
-                continue
-            w0, w1, w2 = 1.0 / (la * lc), 1.0 / (la * lb), 1.0 / (lb * lc)
-        for d in range(3):
-            out[i0, d] += w0 * n[d]
-            out[i1, d] += w1 * n[d]
-            out[i2, d] += w2 * n[d]
-    for v in range(n_vertices):
-        length = v3.norm(v3.row(out, v))
+    for i in prange(n_vertices):
+        total = v3.row(acc[0], i)
+        for c in range(1, CHUNKS):
+            total = v3.add(total, v3.row(acc[c], i))
+        length = v3.norm(total)
         if length > 0.0:
-            out[v] /= length
+            v3.store(out, i, v3.scale(total, 1.0 / length))
     return out
 
 
-def vertex_normals(points: np.ndarray, faces: np.ndarray, *, weighting: str = "area") -> np.ndarray:
+def vertex_normals(
+    points: np.ndarray,
+    faces: np.ndarray,
+    *,
+    weighting: str = "area",
+) -> np.ndarray:
     """Unit vertex normals from the incident faces.
 
     Parameters
@@ -92,38 +106,46 @@ def vertex_normals(points: np.ndarray, faces: np.ndarray, *, weighting: str = "a
     """
     if weighting not in _NORMAL_WEIGHTINGS:
         raise ValueError(f"weighting must be one of {_NORMAL_WEIGHTINGS}; got {weighting!r}")
-    return _accumulate_normals(points, faces, points.shape[0], weighting == "max")
+    return _scatter_normals(points, faces, weighting == "max")
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def meyer_corner_areas(e0, e1, e2):
+    """Mixed Voronoi areas of the corners of one triangle (Meyer et al. 2003).
+
+    ``e0, e1, e2`` are the edge vectors opposite corners 0, 1, 2, running
+    around the triangle (``e0 = p2 - p1``, ``e1 = p0 - p2``, ``e2 = p1 - p0``).
+    Returns the three corner areas (zero for a degenerate triangle).
+    """
+    area = 0.5 * v3.norm(v3.cross(e0, e1))
+    if area == 0.0:
+        return 0.0, 0.0, 0.0
+    l0, l1, l2 = v3.dot(e0, e0), v3.dot(e1, e1), v3.dot(e2, e2)
+    w0 = l0 * (l1 + l2 - l0)
+    w1 = l1 * (l2 + l0 - l1)
+    w2 = l2 * (l0 + l1 - l2)
+    if w0 <= 0.0:
+        c1 = -0.25 * l2 * area / v3.dot(e0, e2)
+        c2 = -0.25 * l1 * area / v3.dot(e0, e1)
+        return area - c1 - c2, c1, c2
+    if w1 <= 0.0:
+        c2 = -0.25 * l0 * area / v3.dot(e1, e0)
+        c0 = -0.25 * l2 * area / v3.dot(e1, e2)
+        return c0, area - c2 - c0, c2
+    if w2 <= 0.0:
+        c0 = -0.25 * l1 * area / v3.dot(e2, e1)
+        c1 = -0.25 * l0 * area / v3.dot(e2, e0)
+        return c0, c1, area - c0 - c1
+    k = 0.5 * area / (w0 + w1 + w2)
+    return k * (w1 + w2), k * (w2 + w0), k * (w0 + w1)
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
 def _corner_areas(points, faces):
-    n_faces = faces.shape[0]
-    out = np.zeros((n_faces, 3))
-    for f in prange(n_faces):
+    out = np.zeros((faces.shape[0], 3))
+    for f in prange(faces.shape[0]):
         p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
-        e0, e1, e2 = v3.sub(p2, p1), v3.sub(p0, p2), v3.sub(p1, p0)
-        area = 0.5 * v3.norm(v3.cross(e0, e1))
-        if area == 0.0:
-            continue
-        l0, l1, l2 = v3.dot(e0, e0), v3.dot(e1, e1), v3.dot(e2, e2)
-        w0 = l0 * (l1 + l2 - l0)
-        w1 = l1 * (l2 + l0 - l1)
-        w2 = l2 * (l0 + l1 - l2)
-        if w0 <= 0.0:
-            c1 = -0.25 * l2 * area / v3.dot(e0, e2)
-            c2 = -0.25 * l1 * area / v3.dot(e0, e1)
-            c0 = area - c1 - c2
-        elif w1 <= 0.0:
-            c2 = -0.25 * l0 * area / v3.dot(e1, e0)
-            c0 = -0.25 * l2 * area / v3.dot(e1, e2)
-            c1 = area - c2 - c0
-        elif w2 <= 0.0:
-            c0 = -0.25 * l1 * area / v3.dot(e2, e1)
-            c1 = -0.25 * l0 * area / v3.dot(e2, e0)
-            c2 = area - c0 - c1
-        else:
-            k = 0.5 * area / (w0 + w1 + w2)
-            c0, c1, c2 = k * (w1 + w2), k * (w2 + w0), k * (w0 + w1)
+        c0, c1, c2 = meyer_corner_areas(v3.sub(p2, p1), v3.sub(p0, p2), v3.sub(p1, p0))
         out[f, 0] = c0
         out[f, 1] = c1
         out[f, 2] = c2

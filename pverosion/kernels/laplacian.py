@@ -7,7 +7,7 @@ import scipy.sparse as sp
 
 from pverosion.kernels.topology import one_ring
 
-__all__ = ["uniform_laplacian", "laplacian_vectors"]
+__all__ = ["laplacian_vectors", "uniform_laplacian"]
 
 
 def uniform_laplacian(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["NORMALIZATIONS", "normalize_curvature", "normalize_symmetric", "normalize_shifted"]
+__all__ = ["NORMALIZATIONS", "normalize_curvature", "normalize_shifted", "normalize_symmetric"]
 
 NORMALIZATIONS = ("none", "symmetric", "shifted")
 """Accepted values of the ``normalization`` option."""

@@ -14,9 +14,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
+
 from pverosion.kernels import _vec3 as v3
-from pverosion.kernels.topology import halfedge_twins
+from pverosion.kernels.topology import halfedge_twins, locality_order
 
 __all__ = ["ORIENTATIONS", "Orientation", "orient_faces", "winding_number"]
 
@@ -34,15 +35,16 @@ class Orientation:
         Faces in the chosen orientation.
     flipped : numpy.ndarray, shape (F,), bool
         Faces whose vertex order was reversed relative to the input.
-    component : numpy.ndarray, shape (F,), int64
-        Edge-connected component of each face.
+    component : numpy.ndarray, shape (F,), int64, or None
+        Edge-connected component of each face; None with ``mode="keep"``,
+        which builds no topology.
     mode : str
         The orientation that was asked for.
     """
 
     faces: np.ndarray
     flipped: np.ndarray
-    component: np.ndarray
+    component: np.ndarray | None
     mode: str
 
     @property
@@ -51,8 +53,10 @@ class Orientation:
         return int(np.count_nonzero(self.flipped))
 
     @property
-    def n_components(self) -> int:
-        """Number of edge-connected components."""
+    def n_components(self) -> int | None:
+        """Number of edge-connected components (None with ``mode="keep"``)."""
+        if self.component is None:
+            return None
         return int(self.component.max()) + 1 if self.component.size else 0
 
 
@@ -183,7 +187,6 @@ def orient_faces(
     faces: np.ndarray,
     *,
     mode: str = "outward",
-    incidence: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> Orientation:
     """Orient faces consistently, with normals pointing out of (or into) the solid.
 
@@ -194,8 +197,6 @@ def orient_faces(
     mode : {"outward", "inward", "keep"}
         ``"outward"`` makes convex regions have positive mean curvature;
         ``"inward"`` is its mirror; ``"keep"`` returns the faces unchanged.
-    incidence : tuple, optional
-        Reuse the result of :func:`~pverosion.kernels.topology.vertex_face_incidence`.
 
     Returns
     -------
@@ -209,28 +210,42 @@ def orient_faces(
     """
     if mode not in ORIENTATIONS:
         raise ValueError(f"orientation must be one of {ORIENTATIONS}; got {mode!r}")
-    partner, others = halfedge_twins(faces, len(points), incidence)
-    flip, component = _propagate(faces, partner)
-    n_comp = int(component.max()) + 1
     if mode == "keep":
-        return Orientation(faces, np.zeros(len(faces), bool), component, mode)
+        return Orientation(faces, np.zeros(len(faces), bool), None, mode)
+    # work on faces sorted for memory locality; map the per-face results back
+    order = locality_order(faces, len(points))
+    local = faces[order]
+    partner, others = halfedge_twins(local, len(points))
+    flip, component = _propagate(local, partner)
+    comp = np.empty_like(component)
+    comp[order] = component
+    n_comp = int(component.max()) + 1
 
-    volume = _closed_volumes(points, faces, flip, component, n_comp, others)
+    volume = _closed_volumes(points, local, flip, component, n_comp, others)
     extent = np.ptp(points, axis=0).max()
     decided = np.abs(volume) > 1e-9 * extent**3
     turn = decided & (volume < 0)
     if n_comp > 1:
-        outward = _apply(faces, flip ^ turn[component])
-        turn ^= _cavity_walls(points, outward, component, n_comp, decided)
+        turn ^= _cavity_walls(points, _apply(local, flip ^ turn[component]), component, n_comp, decided)
     if mode == "inward":
         turn ^= decided
     flip ^= turn[component]
-    return Orientation(_apply(faces, flip), flip, component, mode)
+    flipped = np.empty_like(flip)
+    flipped[order] = flip
+    return Orientation(_apply(faces, flipped), flipped, comp, mode)
 
 
+@njit(cache=True, parallel=True)
 def _apply(faces, flip):
-    out = faces.copy()
-    out[flip, 1], out[flip, 2] = faces[flip, 2], faces[flip, 1]
+    out = np.empty_like(faces)
+    for f in prange(faces.shape[0]):
+        out[f, 0] = faces[f, 0]
+        if flip[f]:
+            out[f, 1] = faces[f, 2]
+            out[f, 2] = faces[f, 1]
+        else:
+            out[f, 1] = faces[f, 1]
+            out[f, 2] = faces[f, 2]
     return out
 
 

@@ -14,12 +14,13 @@ from numba import njit, prange
 
 __all__ = [
     "EdgeTopology",
-    "edge_topology",
-    "vertex_face_incidence",
-    "halfedge_twins",
-    "one_ring",
     "boundary_edges",
     "boundary_vertices",
+    "edge_topology",
+    "halfedge_twins",
+    "locality_order",
+    "one_ring",
+    "vertex_face_incidence",
 ]
 
 
@@ -163,6 +164,42 @@ def vertex_face_incidence(
         Corner (0, 1 or 2) at which ``v`` appears in each listed face.
     """
     return _incidence(faces, int(n_vertices))
+
+
+@njit(cache=True, error_model="numpy")
+def _order_by_min_vertex(faces, n_vertices):
+    start = np.zeros(n_vertices + 1, np.int64)
+    for f in range(faces.shape[0]):
+        start[min(faces[f, 0], faces[f, 1], faces[f, 2]) + 1] += 1
+    for v in range(n_vertices):
+        start[v + 1] += start[v]
+    order = np.empty(faces.shape[0], np.int64)
+    for f in range(faces.shape[0]):
+        lo = min(faces[f, 0], faces[f, 1], faces[f, 2])
+        order[start[lo]] = f
+        start[lo] += 1
+    return order
+
+
+def locality_order(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Face permutation that sorts faces by their smallest vertex index (stable).
+
+    Scanned and exported meshes often list faces in an order unrelated to
+    their vertices; kernels that walk the vertex-face incidence run several
+    times faster on faces sorted this way, because the faces around
+    neighbouring vertices then sit next to each other in memory.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64
+    n_vertices : int
+
+    Returns
+    -------
+    numpy.ndarray, shape (F,), int64
+        ``faces[order]`` is the sorted face array.
+    """
+    return _order_by_min_vertex(faces, int(n_vertices))
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
