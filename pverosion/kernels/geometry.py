@@ -186,20 +186,31 @@ def point_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.bincount(faces.ravel(), weights=corner_areas(points, faces).ravel(), minlength=len(points))
 
 
-def average_edge_length(points: np.ndarray, faces: np.ndarray) -> float:
+@njit(cache=True, error_model="numpy", parallel=True)
+def _mean_edge_length(points, edges):
+    total = 0.0
+    for e in prange(edges.shape[0]):
+        total += v3.norm(v3.sub(v3.row(points, edges[e, 0]), v3.row(points, edges[e, 1])))
+    return total / max(edges.shape[0], 1)
+
+
+def average_edge_length(points: np.ndarray, faces: np.ndarray, *, edges: np.ndarray | None = None) -> float:
     """Mean length of the mesh's unique undirected edges.
 
     Parameters
     ----------
     points : numpy.ndarray, shape (V, 3)
     faces : numpy.ndarray, shape (F, 3)
+    edges : numpy.ndarray, shape (E, 2), optional
+        Reuse the edges of :func:`~pverosion.kernels.topology.edge_topology`.
 
     Returns
     -------
     float
     """
-    edges = edge_topology(faces, len(points)).edges
-    return float(np.linalg.norm(points[edges[:, 1]] - points[edges[:, 0]], axis=1).mean())
+    if edges is None:
+        edges = edge_topology(faces, len(points)).edges
+    return float(_mean_edge_length(points, edges))
 
 
 def signed_volume(points: np.ndarray, faces: np.ndarray, *, origin=None) -> float:

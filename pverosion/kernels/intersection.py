@@ -1,0 +1,373 @@
+"""Triangle-triangle intersection detection for triangle meshes.
+
+Broad phase: every triangle's bounding box is entered into the cells of a
+uniform grid stored as a spatial hash (so memory follows the surface, not
+the bounding volume); two triangles are compared only when they share a cell,
+and only in the first cell they share, so every pair is tested once.
+Narrow phase: Möller's (1997) interval test on the line where the two planes
+meet, with the plane side of each vertex taken from the sign of an orientation
+determinant, and an edge-crossing/containment test for coplanar pairs.
+Touching counts as intersecting.
+
+Faces that share a vertex are adjacent and never reported; degenerate faces
+(zero area) are skipped.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from pverosion.kernels import _vec3 as v3
+from pverosion.kernels.validation import as_triangle_mesh
+
+__all__ = ["intersecting_faces", "intersecting_pairs", "triangles_intersect"]
+
+
+@njit(cache=True, error_model="numpy")
+def _side(a, b, c, p):
+    """Orientation determinant of ``p`` against the plane through a, b, c."""
+    return v3.dot(v3.cross(v3.sub(b, a), v3.sub(c, a)), v3.sub(p, a))
+
+
+@njit(cache=True, error_model="numpy")
+def _interval(p0, p1, p2, d0, d1, d2):
+    """Sorted parameter interval of a triangle on the intersection line.
+
+    ``p*`` are the vertex projections on the line, ``d*`` their signed
+    distances to the other plane (not all of one strict sign, not all zero).
+    """
+    if d0 * d1 > 0.0:  # p2 alone on its side
+        a = p2 + (p0 - p2) * d2 / (d2 - d0)
+        b = p2 + (p1 - p2) * d2 / (d2 - d1)
+    elif d0 * d2 > 0.0:  # p1 alone
+        a = p1 + (p0 - p1) * d1 / (d1 - d0)
+        b = p1 + (p2 - p1) * d1 / (d1 - d2)
+    elif d1 * d2 > 0.0 or d0 != 0.0:  # p0 alone
+        a = p0 + (p1 - p0) * d0 / (d0 - d1)
+        b = p0 + (p2 - p0) * d0 / (d0 - d2)
+    elif d1 != 0.0:
+        a = p1 + (p0 - p1) * d1 / (d1 - d0)
+        b = p1 + (p2 - p1) * d1 / (d1 - d2)
+    else:
+        a = p2 + (p0 - p2) * d2 / (d2 - d0)
+        b = p2 + (p1 - p2) * d2 / (d2 - d1)
+    return min(a, b), max(a, b)
+
+
+@njit(cache=True, error_model="numpy")
+def _orient2d(a, b, c):
+    return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+
+
+@njit(cache=True, error_model="numpy")
+def _segments_cross_2d(a, b, c, d):
+    """Closed 2D segments ab and cd share a point."""
+    o1, o2 = _orient2d(a, b, c), _orient2d(a, b, d)
+    o3, o4 = _orient2d(c, d, a), _orient2d(c, d, b)
+    if ((o1 > 0 and o2 < 0) or (o1 < 0 and o2 > 0)) and ((o3 > 0 and o4 < 0) or (o3 < 0 and o4 > 0)):
+        return True
+    if o1 == 0 and o2 == 0:  # collinear: overlap of projections
+        for k in range(2):
+            if max(min(a[k], b[k]), min(c[k], d[k])) > min(max(a[k], b[k]), max(c[k], d[k])):
+                return False
+        return True
+    return (
+        (o1 == 0 and _on_segment(a, b, c))
+        or (o2 == 0 and _on_segment(a, b, d))
+        or (o3 == 0 and _on_segment(c, d, a))
+        or (o4 == 0 and _on_segment(c, d, b))
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def _on_segment(a, b, p):
+    return min(a[0], b[0]) <= p[0] <= max(a[0], b[0]) and min(a[1], b[1]) <= p[1] <= max(a[1], b[1])
+
+
+@njit(cache=True, error_model="numpy")
+def _inside_2d(p, a, b, c):
+    o1, o2, o3 = _orient2d(a, b, p), _orient2d(b, c, p), _orient2d(c, a, p)
+    return (o1 >= 0 and o2 >= 0 and o3 >= 0) or (o1 <= 0 and o2 <= 0 and o3 <= 0)
+
+
+@njit(cache=True, error_model="numpy")
+def _coplanar(normal, p0, p1, p2, q0, q1, q2):
+    """Intersection test of two coplanar triangles, projected along the normal's largest axis."""
+    ax, ay, az = abs(normal[0]), abs(normal[1]), abs(normal[2])
+    if ax >= ay and ax >= az:
+        i, j = 1, 2
+    elif ay >= az:
+        i, j = 0, 2
+    else:
+        i, j = 0, 1
+    P = ((p0[i], p0[j]), (p1[i], p1[j]), (p2[i], p2[j]))
+    Q = ((q0[i], q0[j]), (q1[i], q1[j]), (q2[i], q2[j]))
+    for a in range(3):
+        for b in range(3):
+            if _segments_cross_2d(P[a], P[(a + 1) % 3], Q[b], Q[(b + 1) % 3]):
+                return True
+    return _inside_2d(P[0], Q[0], Q[1], Q[2]) or _inside_2d(Q[0], P[0], P[1], P[2])
+
+
+@njit(cache=True, error_model="numpy")
+def tri_tri(p0, p1, p2, q0, q1, q2):
+    """Whether closed triangles (p0, p1, p2) and (q0, q1, q2), given as 3-tuples, meet."""
+    dp0, dp1, dp2 = _side(q0, q1, q2, p0), _side(q0, q1, q2, p1), _side(q0, q1, q2, p2)
+    if (dp0 > 0 and dp1 > 0 and dp2 > 0) or (dp0 < 0 and dp1 < 0 and dp2 < 0):
+        return False
+    dq0, dq1, dq2 = _side(p0, p1, p2, q0), _side(p0, p1, p2, q1), _side(p0, p1, p2, q2)
+    if (dq0 > 0 and dq1 > 0 and dq2 > 0) or (dq0 < 0 and dq1 < 0 and dq2 < 0):
+        return False
+    n1 = v3.cross(v3.sub(p1, p0), v3.sub(p2, p0))
+    if dp0 == 0.0 and dp1 == 0.0 and dp2 == 0.0:
+        return _coplanar(n1, p0, p1, p2, q0, q1, q2)
+    n2 = v3.cross(v3.sub(q1, q0), v3.sub(q2, q0))
+    line = v3.cross(n1, n2)
+    # project on the coordinate axis closest to the line direction (order is preserved)
+    ax, ay, az = abs(line[0]), abs(line[1]), abs(line[2])
+    k = 0 if ax >= ay and ax >= az else (1 if ay >= az else 2)
+    a1, b1 = _interval(p0[k], p1[k], p2[k], dp0, dp1, dp2)
+    a2, b2 = _interval(q0[k], q1[k], q2[k], dq0, dq1, dq2)
+    return max(a1, a2) <= min(b1, b2)
+
+
+def triangles_intersect(p, q) -> bool:
+    """Whether two closed triangles in 3D meet (touching counts).
+
+    Parameters
+    ----------
+    p, q : array_like, shape (3, 3)
+        The vertices of each triangle, one per row.
+
+    Returns
+    -------
+    bool
+    """
+    p = np.asarray(p, dtype=np.float64)
+    q = np.asarray(q, dtype=np.float64)
+    if p.shape != (3, 3) or q.shape != (3, 3):
+        raise ValueError(f"triangles must have shape (3, 3); got {p.shape} and {q.shape}")
+    return bool(tri_tri(v3.row(p, 0), v3.row(p, 1), v3.row(p, 2), v3.row(q, 0), v3.row(q, 1), v3.row(q, 2)))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _key(ix, iy, iz):
+    return (ix << 42) | (iy << 21) | iz
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _spread(x):
+    """Spread the low 21 bits of x two bits apart (Morton code helper)."""
+    x &= 0x1FFFFF
+    x = (x | (x << 32)) & 0x1F00000000FFFF
+    x = (x | (x << 16)) & 0x1F0000FF0000FF
+    x = (x | (x << 8)) & 0x100F00F00F00F00F
+    x = (x | (x << 4)) & 0x10C30C30C30C30C3
+    x = (x | (x << 2)) & 0x1249249249249249
+    return x
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _morton(ix, iy, iz):
+    return (_spread(ix) << 2) | (_spread(iy) << 1) | _spread(iz)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _hash(ix, iy, iz, size):
+    """Bucket of a cell: its Morton code modulo the table size, so that cells near in
+    space mostly land in buckets near in memory."""
+    return _morton(ix, iy, iz) % size
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def _face_boxes(points, faces):
+    """Boxes of the non-degenerate faces, the grid cell edge, origin and Morton keys."""
+    n = faces.shape[0]
+    lo = np.empty((n, 3))
+    hi = np.empty((n, 3))
+    ok = np.zeros(n, np.bool_)
+    side = np.zeros(n)
+    for f in prange(n):
+        p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
+        for d in range(3):
+            lo[f, d] = min(p0[d], p1[d], p2[d])
+            hi[f, d] = max(p0[d], p1[d], p2[d])
+        c = v3.cross(v3.sub(p1, p0), v3.sub(p2, p0))
+        ok[f] = v3.dot(c, c) > 0.0
+        if ok[f]:
+            side[f] = max(hi[f, 0] - lo[f, 0], hi[f, 1] - lo[f, 1], hi[f, 2] - lo[f, 2])
+    n_ok = 0
+    total = 0.0
+    origin = np.full(3, np.inf)
+    for f in range(n):
+        if ok[f]:
+            n_ok += 1
+            total += side[f]
+            for d in range(3):
+                origin[d] = min(origin[d], lo[f, d])
+    # cell edge: the mean of the boxes' largest side, so a face covers a few cells
+    h = total / n_ok if n_ok > 0 and total > 0.0 else 1.0
+    keys = np.zeros(n, np.int64)
+    for f in prange(n):
+        if ok[f]:
+            keys[f] = _morton(
+                int((lo[f, 0] - origin[0]) / h), int((lo[f, 1] - origin[1]) / h), int((lo[f, 2] - origin[2]) / h)
+            )
+    return lo, hi, ok, origin, 1.0 / h, keys, n_ok
+
+
+@njit(cache=True, error_model="numpy")
+def _cell_range(lo, hi, f, origin, inv_h):
+    return (
+        int((lo[f, 0] - origin[0]) * inv_h),
+        int((lo[f, 1] - origin[1]) * inv_h),
+        int((lo[f, 2] - origin[2]) * inv_h),
+        int((hi[f, 0] - origin[0]) * inv_h),
+        int((hi[f, 1] - origin[1]) * inv_h),
+        int((hi[f, 2] - origin[2]) * inv_h),
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def _build_grid(lo, hi, ok, origin, inv_h, size):
+    """Spatial hash: the faces covering each bucket's cells, with each entry's packed cell key."""
+    n = lo.shape[0]
+    start = np.zeros(size + 1, np.int64)
+    for f in range(n):
+        if not ok[f]:
+            continue
+        x0, y0, z0, x1, y1, z1 = _cell_range(lo, hi, f, origin, inv_h)
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
+                for iz in range(z0, z1 + 1):
+                    start[_hash(ix, iy, iz, size) + 1] += 1
+    for b in range(size):
+        start[b + 1] += start[b]
+    entries = np.empty(start[size], np.int64)
+    cells = np.empty(start[size], np.int64)
+    fill = start[:-1].copy()
+    for f in range(n):
+        if not ok[f]:
+            continue
+        x0, y0, z0, x1, y1, z1 = _cell_range(lo, hi, f, origin, inv_h)
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
+                for iz in range(z0, z1 + 1):
+                    b = _hash(ix, iy, iz, size)
+                    entries[fill[b]] = f
+                    cells[fill[b]] = _key(ix, iy, iz)
+                    fill[b] += 1
+    return start, entries, cells
+
+
+@njit(cache=True, error_model="numpy")
+def _share_vertex(faces, f, g):
+    for a in range(3):
+        for b in range(3):
+            if faces[f, a] == faces[g, b]:
+                return True
+    return False
+
+
+@njit(cache=True, error_model="numpy")
+def _pair_hits(points, faces, lo, hi, f, g):
+    """Test pair (f, g): boxes, adjacency, then the triangles."""
+    for d in range(3):
+        if lo[f, d] > hi[g, d] or lo[g, d] > hi[f, d]:
+            return False
+    if _share_vertex(faces, f, g):
+        return False
+    return tri_tri(
+        v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2]),
+        v3.row(points, faces[g, 0]), v3.row(points, faces[g, 1]), v3.row(points, faces[g, 2]),
+    )
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def _count_hits(points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells, size):
+    """Per face, how many non-adjacent faces it intersects (only faces with ``query`` set)."""
+    n = faces.shape[0]
+    hits = np.zeros(n, np.int64)
+    for f in prange(n):
+        if not (ok[f] and query[f]):
+            continue
+        fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
+        for ix in range(fx0, fx1 + 1):
+            for iy in range(fy0, fy1 + 1):
+                for iz in range(fz0, fz1 + 1):
+                    b = _hash(ix, iy, iz, size)
+                    key = _key(ix, iy, iz)
+                    for e in range(start[b], start[b + 1]):
+                        g = entries[e]
+                        if g == f or cells[e] != key:
+                            continue  # f itself, or another cell hashed into this bucket
+                        # visit the pair only in the first cell both boxes cover
+                        if (
+                            max(fx0, int((lo[g, 0] - origin[0]) * inv_h)) != ix
+                            or max(fy0, int((lo[g, 1] - origin[1]) * inv_h)) != iy
+                            or max(fz0, int((lo[g, 2] - origin[2]) * inv_h)) != iz
+                        ):
+                            continue
+                        if _pair_hits(points, faces, lo, hi, f, g):
+                            hits[f] += 1
+    return hits
+
+
+def intersecting_faces(points, faces, *, query=None) -> np.ndarray:
+    """Faces that intersect a non-adjacent face of the same mesh.
+
+    Parameters
+    ----------
+    points : array_like, shape (V, 3)
+    faces : array_like, shape (F, 3)
+    query : array_like of bool, shape (F,), optional
+        Test only these faces (against all faces); by default all of them.
+        Use it for incremental checks of the faces near moved vertices.
+
+    Returns
+    -------
+    numpy.ndarray, shape (F,), int64
+        For each face, the number of non-adjacent faces it meets (0 for faces
+        not queried). ``(result > 0).any()`` tells whether the mesh
+        self-intersects.
+    """
+    pts, fcs = as_triangle_mesh(points, faces)
+    q = np.ones(len(fcs), bool) if query is None else np.asarray(query, dtype=bool)
+    if q.shape != (len(fcs),):
+        raise ValueError(f"query must have shape ({len(fcs)},); got {q.shape}")
+    lo, hi, ok, origin, inv_h, keys, n_ok = _face_boxes(pts, fcs)
+    hits = np.zeros(len(fcs), np.int64)
+    if n_ok == 0:
+        return hits
+    # visit the faces in Morton order of their boxes, so neighbours in space are near in memory
+    order = np.argsort(keys, kind="stable")
+    lo, hi, ok, fcs = lo[order], hi[order], ok[order], fcs[order]
+    size = 4 * n_ok + 1
+    grid = _build_grid(lo, hi, ok, origin, inv_h, size)
+    hits[order] = _count_hits(pts, fcs, lo, hi, ok, q[order], origin, inv_h, *grid, size)
+    return hits
+
+
+def intersecting_pairs(points, faces) -> np.ndarray:
+    """All pairs of non-adjacent faces that intersect.
+
+    Parameters
+    ----------
+    points : array_like, shape (V, 3)
+    faces : array_like, shape (F, 3)
+
+    Returns
+    -------
+    numpy.ndarray, shape (K, 2), int64
+        Face index pairs ``(f, g)`` with ``f < g``, sorted.
+    """
+    pts, fcs = as_triangle_mesh(points, faces)
+    hits = intersecting_faces(pts, fcs)
+    flagged = np.flatnonzero(hits)
+    pairs = set()
+    for f in flagged:
+        for g in flagged:
+            if f < g and not set(fcs[f]) & set(fcs[g]) and triangles_intersect(pts[fcs[f]], pts[fcs[g]]):
+                pairs.add((int(f), int(g)))
+    return np.array(sorted(pairs), dtype=np.int64).reshape(-1, 2)
