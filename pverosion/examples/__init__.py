@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pyvista as pv
 
-__all__ = ["load_cylinder", "load_rock", "load_torus", "periodic_grid_surface"]
+__all__ = ["load_cube", "load_cylinder", "load_hand", "load_rock", "load_torus", "periodic_grid_surface"]
 
 
 def _triangulate_grid(n_u: int, n_v: int, *, wrap_u: bool, wrap_v: bool) -> np.ndarray:
@@ -92,3 +92,77 @@ def load_rock(*, subdivisions: int = 5, n_bumps: int = 24, roughness: float = 0.
     d2 = ((points[:, None, :] - centres[None]) ** 2).sum(-1)
     radius = 1.0 + (heights * np.exp(-d2 / widths**2)).sum(1)
     return pv.PolyData.from_regular_faces(points * radius[:, None], sphere.regular_faces)
+
+
+def load_cube(*, resolution: int = 10, size: float = 2.0) -> pv.PolyData:
+    """Closed cube centred at the origin, each face an evenly triangulated grid.
+
+    Parameters
+    ----------
+    resolution : int, default: 10
+        Grid cells along every cube edge (``6 * resolution**2 + 2`` vertices;
+        602 for 10, the model of the paper's Figure 6).
+    size : float, default: 2.0
+        Edge length.
+
+    Returns
+    -------
+    pyvista.PolyData
+        Outward-oriented triangles.
+    """
+    if int(resolution) != resolution or resolution < 1:
+        raise ValueError(f"resolution must be an integer >= 1; got {resolution!r}")
+    n = int(resolution)
+    t = np.linspace(-1.0, 1.0, n + 1)
+    uu, vv = np.meshgrid(t, t, indexing="ij")
+    grid_faces = _triangulate_grid(n + 1, n + 1, wrap_u=False, wrap_v=False)
+    points, faces = [], []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            p = np.zeros((n + 1, n + 1, 3))
+            # (u, v, outward) right-handed, so the grid's triangles face out
+            u_axis, v_axis = (axis + 1) % 3, (axis + 2) % 3
+            if sign < 0:
+                u_axis, v_axis = v_axis, u_axis
+            p[..., axis] = sign
+            p[..., u_axis] = uu
+            p[..., v_axis] = vv
+            faces.append(grid_faces + sum(len(q) for q in points))
+            points.append(p.reshape(-1, 3))
+    all_points = np.concatenate(points)
+    unique, inverse = np.unique(np.round(all_points, 12), axis=0, return_inverse=True)
+    cube_faces = inverse.ravel()[np.concatenate(faces)]
+    return pv.PolyData.from_regular_faces(unique * (size / 2.0), cube_faces)
+
+
+def load_hand(*, subdivisions: int = 5, finger_length: float = 0.9, finger_width: float = 0.18) -> pv.PolyData:
+    """A "hand"-like closed surface: a flattened palm with five thin protruding fingers.
+
+    Radial displacement of an icosphere by narrow lobes, so the surface stays a
+    closed manifold; the finger tips are the most protruding, highly convex
+    regions (the model of the paper's Figures 8–9).
+
+    Parameters
+    ----------
+    subdivisions : int, default: 5
+        Icosphere subdivisions.
+    finger_length : float, default: 0.9
+        Length of the fingers beyond the palm, relative to the palm radius.
+    finger_width : float, default: 0.18
+        Angular width (radians) of each finger.
+
+    Returns
+    -------
+    pyvista.PolyData
+    """
+    sphere = pv.Icosphere(radius=1.0, nsub=subdivisions)
+    points = np.asarray(sphere.points, dtype=np.float64)
+    points /= np.linalg.norm(points, axis=1, keepdims=True)
+    angles = np.deg2rad([-70.0, -35.0, 0.0, 30.0, 60.0])  # thumb to little finger, in the palm plane
+    axes = np.stack([np.sin(angles), np.cos(angles), np.zeros_like(angles)], axis=1)
+    lengths = finger_length * np.array([0.7, 1.0, 1.1, 1.0, 0.8])
+    cosine = np.clip(points @ axes.T, -1.0, 1.0)
+    lobes = lengths * np.exp(-((np.arccos(cosine) / finger_width) ** 2))
+    radius = 1.0 + lobes.sum(axis=1)
+    palm = np.array([1.0, 1.0, 0.45])  # flattened across the palm
+    return pv.PolyData.from_regular_faces(points * radius[:, None] * palm, sphere.regular_faces)

@@ -21,7 +21,7 @@ from numba import njit, prange
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels.validation import as_triangle_mesh
 
-__all__ = ["intersecting_faces", "intersecting_pairs", "triangles_intersect"]
+__all__ = ["intersecting_faces", "intersecting_pairs", "spatial_order", "triangles_intersect"]
 
 
 @njit(cache=True, error_model="numpy")
@@ -286,9 +286,9 @@ def _pair_hits(points, faces, lo, hi, f, g):
 
 @njit(cache=True, error_model="numpy", parallel=True)
 def _count_hits(points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells, size):
-    """Per face, how many non-adjacent faces it intersects (only faces with ``query`` set)."""
+    """Flag the faces that meet a non-adjacent face, testing the pairs with a queried face once."""
     n = faces.shape[0]
-    hits = np.zeros(n, np.int64)
+    hits = np.zeros(n, np.bool_)
     for f in prange(n):
         if not (ok[f] and query[f]):
             continue
@@ -300,8 +300,8 @@ def _count_hits(points, faces, lo, hi, ok, query, origin, inv_h, start, entries,
                     key = _key(ix, iy, iz)
                     for e in range(start[b], start[b + 1]):
                         g = entries[e]
-                        if g == f or cells[e] != key:
-                            continue  # f itself, or another cell hashed into this bucket
+                        if cells[e] != key or g == f or (g < f and query[g]):
+                            continue  # another cell hashed here, f itself, or a pair seen from g
                         # visit the pair only in the first cell both boxes cover
                         if (
                             max(fx0, int((lo[g, 0] - origin[0]) * inv_h)) != ix
@@ -310,11 +310,32 @@ def _count_hits(points, faces, lo, hi, ok, query, origin, inv_h, start, entries,
                         ):
                             continue
                         if _pair_hits(points, faces, lo, hi, f, g):
-                            hits[f] += 1
+                            hits[f] = True
+                            hits[g] = True  # same value from any thread: a benign race
     return hits
 
 
-def intersecting_faces(points, faces, *, query=None) -> np.ndarray:
+def spatial_order(points, faces) -> np.ndarray:
+    """Face permutation along a Morton curve through the faces' bounding boxes.
+
+    Intersection checks run fastest with faces that are near in space also
+    near in memory; a mesh whose vertices only move a little keeps a good
+    order, so compute it once and pass it to :func:`intersecting_faces`.
+
+    Parameters
+    ----------
+    points : array_like, shape (V, 3)
+    faces : array_like, shape (F, 3)
+
+    Returns
+    -------
+    numpy.ndarray, shape (F,), int64
+    """
+    pts, fcs = as_triangle_mesh(points, faces)
+    return np.argsort(_face_boxes(pts, fcs)[5], kind="stable")
+
+
+def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
     """Faces that intersect a non-adjacent face of the same mesh.
 
     Parameters
@@ -322,30 +343,36 @@ def intersecting_faces(points, faces, *, query=None) -> np.ndarray:
     points : array_like, shape (V, 3)
     faces : array_like, shape (F, 3)
     query : array_like of bool, shape (F,), optional
-        Test only these faces (against all faces); by default all of them.
+        Test only the pairs that involve these faces; by default all pairs.
         Use it for incremental checks of the faces near moved vertices.
+    order : array_like of int, shape (F,), optional
+        A face permutation from :func:`spatial_order` (of this or an earlier
+        state of the mesh). It only affects speed; by default it is computed.
 
     Returns
     -------
-    numpy.ndarray, shape (F,), int64
-        For each face, the number of non-adjacent faces it meets (0 for faces
-        not queried). ``(result > 0).any()`` tells whether the mesh
-        self-intersects.
+    numpy.ndarray, shape (F,), bool
+        Faces that meet a non-adjacent face (in a tested pair).
+        ``result.any()`` tells whether the mesh self-intersects.
     """
     pts, fcs = as_triangle_mesh(points, faces)
     q = np.ones(len(fcs), bool) if query is None else np.asarray(query, dtype=bool)
     if q.shape != (len(fcs),):
         raise ValueError(f"query must have shape ({len(fcs)},); got {q.shape}")
-    lo, hi, ok, origin, inv_h, keys, n_ok = _face_boxes(pts, fcs)
-    hits = np.zeros(len(fcs), np.int64)
+    if order is None:
+        order = spatial_order(pts, fcs)
+    order = np.asarray(order, dtype=np.int64)
+    if order.shape != (len(fcs),):
+        raise ValueError(f"order must have shape ({len(fcs)},); got {order.shape}")
+    # visit the faces in Morton order, so neighbours in space are near in memory
+    local = fcs[order]
+    lo, hi, ok, origin, inv_h, _, n_ok = _face_boxes(pts, local)
+    hits = np.zeros(len(fcs), bool)
     if n_ok == 0:
         return hits
-    # visit the faces in Morton order of their boxes, so neighbours in space are near in memory
-    order = np.argsort(keys, kind="stable")
-    lo, hi, ok, fcs = lo[order], hi[order], ok[order], fcs[order]
     size = 4 * n_ok + 1
     grid = _build_grid(lo, hi, ok, origin, inv_h, size)
-    hits[order] = _count_hits(pts, fcs, lo, hi, ok, q[order], origin, inv_h, *grid, size)
+    hits[order] = _count_hits(pts, local, lo, hi, ok, q[order], origin, inv_h, *grid, size)
     return hits
 
 

@@ -4,13 +4,46 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 
 from pverosion.kernels.topology import one_ring
 
 __all__ = ["laplacian_vectors", "uniform_laplacian"]
 
 
-def uniform_laplacian(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:
+@njit(cache=True, error_model="numpy")
+def _with_diagonal(indptr, indices):
+    """CSR rows ``1/deg`` at the (sorted) neighbours and ``-1`` on the diagonal."""
+    n = indptr.shape[0] - 1
+    out_ptr = np.zeros(n + 1, np.int64)
+    for i in range(n):
+        deg = indptr[i + 1] - indptr[i]
+        out_ptr[i + 1] = out_ptr[i] + (deg + 1 if deg > 0 else 0)
+    out_idx = np.empty(out_ptr[n], np.int64)
+    data = np.empty(out_ptr[n])
+    for i in range(n):
+        deg = indptr[i + 1] - indptr[i]
+        if deg == 0:
+            continue
+        k = out_ptr[i]
+        placed = False
+        for s in range(indptr[i], indptr[i + 1]):
+            j = indices[s]
+            if not placed and j > i:
+                out_idx[k] = i
+                data[k] = -1.0
+                k += 1
+                placed = True
+            out_idx[k] = j
+            data[k] = 1.0 / deg
+            k += 1
+        if not placed:
+            out_idx[k] = i
+            data[k] = -1.0
+    return out_ptr, out_idx, data
+
+
+def uniform_laplacian(faces: np.ndarray, n_vertices: int, *, edges: np.ndarray | None = None) -> sp.csr_matrix:
     """Sparse uniform Laplacian ``L`` with ``(L @ P)[i] = mean_{j in N(i)} P[j] - P[i]``.
 
     Build it once per connectivity; apply it to changing point arrays.
@@ -19,19 +52,17 @@ def uniform_laplacian(faces: np.ndarray, n_vertices: int) -> sp.csr_matrix:
     ----------
     faces : numpy.ndarray, shape (F, 3), int64
     n_vertices : int
+    edges : numpy.ndarray, shape (E, 2), optional
+        Reuse the unique edges of :func:`~pverosion.kernels.topology.edge_topology`.
 
     Returns
     -------
     scipy.sparse.csr_matrix, shape (V, V)
         Rows of isolated vertices are zero.
     """
-    indptr, indices = one_ring(faces, n_vertices)
-    degree = np.diff(indptr)
-    inv = np.zeros(n_vertices)
-    np.divide(1.0, degree, out=inv, where=degree > 0)
-    average = sp.csr_matrix((np.repeat(inv, degree), indices, indptr), shape=(n_vertices, n_vertices))
-    identity = sp.diags((degree > 0).astype(float), format="csr")
-    return (average - identity).tocsr()
+    indptr, indices = one_ring(faces, n_vertices, edges=edges)
+    out_ptr, out_idx, data = _with_diagonal(indptr, indices)
+    return sp.csr_matrix((data, out_idx, out_ptr), shape=(n_vertices, n_vertices))
 
 
 def laplacian_vectors(points: np.ndarray, faces: np.ndarray) -> np.ndarray:

@@ -265,13 +265,42 @@ def halfedge_twins(
     return _twins(faces, indptr, face_ids, corner_ids)
 
 
-def one_ring(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+@njit(cache=True, error_model="numpy")
+def _ring_csr(edges, n_vertices):
+    indptr = np.zeros(n_vertices + 1, np.int64)
+    for e in range(edges.shape[0]):
+        indptr[edges[e, 0] + 1] += 1
+        indptr[edges[e, 1] + 1] += 1
+    for v in range(n_vertices):
+        indptr[v + 1] += indptr[v]
+    fill = indptr[:-1].copy()
+    indices = np.empty(indptr[n_vertices], np.int64)
+    for e in range(edges.shape[0]):
+        a, b = edges[e, 0], edges[e, 1]
+        indices[fill[a]] = b
+        fill[a] += 1
+        indices[fill[b]] = a
+        fill[b] += 1
+    for v in range(n_vertices):  # insertion sort of each (short) row
+        for i in range(indptr[v] + 1, indptr[v + 1]):
+            x = indices[i]
+            j = i - 1
+            while j >= indptr[v] and indices[j] > x:
+                indices[j + 1] = indices[j]
+                j -= 1
+            indices[j + 1] = x
+    return indptr, indices
+
+
+def one_ring(faces: np.ndarray, n_vertices: int, *, edges: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """One-ring vertex neighbourhoods N(i), in compressed sparse row form.
 
     Parameters
     ----------
     faces : numpy.ndarray, shape (F, 3), int64
     n_vertices : int
+    edges : numpy.ndarray, shape (E, 2), optional
+        Reuse the unique edges of :func:`edge_topology`.
 
     Returns
     -------
@@ -280,13 +309,9 @@ def one_ring(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray
         The neighbours of vertex ``i`` are ``indices[indptr[i]:indptr[i + 1]]``
         (sorted, each once). Isolated vertices have none.
     """
-    edges = edge_topology(faces, n_vertices).edges
-    both = np.concatenate([edges, edges[:, ::-1]])
-    order = np.lexsort((both[:, 1], both[:, 0]))
-    both = both[order]
-    indptr = np.zeros(n_vertices + 1, np.int64)
-    np.add.at(indptr, both[:, 0] + 1, 1)
-    return np.cumsum(indptr), np.ascontiguousarray(both[:, 1])
+    if edges is None:
+        edges = edge_topology(faces, n_vertices).edges
+    return _ring_csr(np.ascontiguousarray(edges, dtype=np.int64), int(n_vertices))
 
 
 def boundary_edges(faces: np.ndarray, n_vertices: int, topology: EdgeTopology | None = None) -> np.ndarray:
