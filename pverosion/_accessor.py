@@ -21,3 +21,7 @@ class ErosionAccessor:
     def curvature(self, *, orientation: str = "outward", normalization: str = "none") -> pv.PolyData:
         """Per-vertex curvature; see :func:`pverosion.curvature`."""
         return api.curvature(self._dataset, orientation=orientation, normalization=normalization)
+
+    def weather(self, **options) -> pv.PolyData:
+        """Curvature-driven weathering; see :func:`pverosion.weather` for the options."""
+        return api.weather(self._dataset, **options)

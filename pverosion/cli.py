@@ -18,7 +18,7 @@ __all__ = ["build_parser", "main"]
 
 
 def _command_name(filter_cls: type[ErosionFilter]) -> str:
-    return filter_cls.__name__.lower()
+    return filter_cls.COMMAND or filter_cls.__name__.lower()
 
 
 def _add_filter_options(parser: argparse.ArgumentParser, filter_cls: type[ErosionFilter]) -> None:
@@ -47,8 +47,54 @@ def build_parser() -> argparse.ArgumentParser:
         cmd.add_argument("-o", "--output", type=Path, required=True, help="output file (.vtp recommended)")
         cmd.add_argument("--screenshot", type=Path, help="also render the result off-screen to this PNG")
         _add_filter_options(cmd, filter_cls)
+        if filter_cls.TIME_DEPENDENT:
+            cmd.add_argument("--save-every", type=int, metavar="K",
+                             help="also save every K-th step (and the last) into the --series collection")
+            cmd.add_argument("--series", type=Path, metavar="OUT.pvd",
+                             help="ParaView time series (.pvd) of the saved steps (default: next to OUT)")
         cmd.set_defaults(filter_cls=filter_cls)
     return parser
+
+
+def _run_time_stage(filter_cls: type[ErosionFilter], mesh, options: dict, args: argparse.Namespace):
+    """Step a time-dependent filter through its output times with a progress bar; save the series."""
+    import pyvista as pv
+    from tqdm.auto import tqdm
+
+    from pverosion.io import TimeSeriesWriter
+
+    n = options["iterations"]
+    if args.save_every is not None and args.save_every < 1:
+        raise ValueError(f"--save-every must be >= 1; got {args.save_every}")
+    if args.series is not None and args.save_every is None:
+        raise ValueError("--series needs --save-every K")
+    times = [n]
+    if args.save_every:
+        times = sorted(set(range(0, n + 1, args.save_every)) | {n})
+    alg = filter_cls(**options)
+    alg.SetInputDataObject(0, mesh)
+    series = None
+    if args.save_every:
+        series = TimeSeriesWriter(args.series or args.output.with_suffix(".pvd"))
+    result = None
+    with tqdm(total=n, desc=_command_name(filter_cls), unit="step") as bar:
+        done = 0
+        for t in times:
+            # progress of this call, reported by the filter, drives the bar
+            def advance(caller, _event, start=done, stop=t):
+                target = start + round(caller.GetProgress() * (stop - start))
+                bar.update(max(target - bar.n, 0))
+
+            tag = alg.AddObserver("ProgressEvent", advance)
+            result = pv.wrap(alg.run_time(mesh, t))
+            alg.RemoveObserver(tag)
+            bar.update(max(t - bar.n, 0))
+            done = t
+            if series is not None:
+                series.write(result, time=t)
+    if series is not None:
+        print(f"series: {len(series.entries)} steps -> {series.path}")
+    return result
 
 
 def _run_stage(args: argparse.Namespace) -> None:
@@ -59,7 +105,10 @@ def _run_stage(args: argparse.Namespace) -> None:
     options = {p.name: getattr(args, p.name) for p in filter_cls.PARAMS}
     mesh = read_mesh(args.input)
     start = time.perf_counter()
-    result = apply_filter(filter_cls, mesh, **options)
+    if filter_cls.TIME_DEPENDENT:
+        result = _run_time_stage(filter_cls, mesh, options, args)
+    else:
+        result = apply_filter(filter_cls, mesh, **options)
     elapsed = time.perf_counter() - start
     write_atomic(result, args.output)
     print(f"{_command_name(filter_cls)}: {mesh.n_points} points, {mesh.n_cells} cells in {elapsed:.3f} s -> {args.output}")

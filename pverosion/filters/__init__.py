@@ -6,7 +6,8 @@ generated from it, so a new stage is exposed by adding its class here.
 
 from pverosion.filters.base import ErosionFilter, Param
 from pverosion.filters.curvature import Curvature
+from pverosion.filters.weathering import Weathering
 
-ALL_FILTERS: tuple[type[ErosionFilter], ...] = (Curvature,)
+ALL_FILTERS: tuple[type[ErosionFilter], ...] = (Curvature, Weathering)
 
-__all__ = ["ALL_FILTERS", "Curvature", "ErosionFilter", "Param"]
+__all__ = ["ALL_FILTERS", "Curvature", "ErosionFilter", "Param", "Weathering"]

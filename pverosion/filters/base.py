@@ -100,6 +100,10 @@ class ErosionFilter(VTKPythonAlgorithmBase):
 
     PARAMS: ClassVar[tuple[Param, ...]] = ()
     LABEL: ClassVar[str] = ""
+    COMMAND: ClassVar[str] = ""
+    """CLI subcommand; the lower-case class name when empty."""
+    TIME_DEPENDENT: ClassVar[bool] = False
+    """Whether the output publishes TIME_STEPS (one per simulation step)."""
     INPUT_TYPE: ClassVar[str] = "vtkPolyData"
     OUTPUT_TYPE: ClassVar[str] = "vtkPolyData"
 
@@ -178,14 +182,25 @@ class ErosionFilter(VTKPythonAlgorithmBase):
         vtkDataObject
             A new object, independent of this filter's later updates.
         """
-        self.SetInputDataObject(0, data)
+        return self.run_time(data, None)
+
+    def run_time(self, data, time: float | None):
+        """Like :meth:`run`, at output time ``time`` of a time-dependent filter (None: the default).
+
+        The input stays connected, so a time-dependent filter can continue
+        from its cached state when a later time is asked for.
+        """
+        if self.GetInputDataObject(0, 0) is not data:
+            self.SetInputDataObject(0, data)
         shown = vtkObject.GetGlobalWarningDisplay()
         vtkObject.GlobalWarningDisplayOff()
         try:
-            self.Update()
+            if time is None:
+                self.Update()
+            else:
+                self.UpdateTimeStep(float(time))
         finally:
             vtkObject.SetGlobalWarningDisplay(shown)
-            self.SetInputDataObject(0, None)
         if self._error is not None:
             error, self._error = self._error, None
             raise error

@@ -40,7 +40,7 @@ from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels.curvature import CurvatureOperator
-from pverosion.kernels.geometry import average_edge_length
+from pverosion.kernels.geometry import average_edge_length, vertex_normals
 from pverosion.kernels.intersection import intersecting_faces, spatial_order
 from pverosion.kernels.laplacian import uniform_laplacian
 from pverosion.kernels.normalize import normalize_symmetric
@@ -151,6 +151,8 @@ class WeatheringSolver:
         Input index of every current vertex (collapses remove vertices).
     displacement : numpy.ndarray, shape (V', 3)
         Cumulative weathering displacement of every current vertex.
+    initial_normals : numpy.ndarray, shape (V, 3)
+        Outward unit normals of the input vertices (index with ``ids``).
     step_count : int
         Steps done (time).
     retries : int
@@ -212,6 +214,7 @@ class WeatheringSolver:
         self._scale = np.ones(len(pts))  # displacement length factor per input vertex
         self._origin = pts.mean(axis=0)
         self._build_topology()
+        self.initial_normals = vertex_normals(self.points, self.faces, weighting="area")
         volume, _ = _volume_area(self.points, self.faces, self._origin)
         self._volume0 = float(volume)
         self._stats: list[tuple] = [self._row(self._curvature(self.points).mean)]
@@ -339,6 +342,7 @@ class WeatheringSolver:
         *,
         outputs: Iterable[int] = (),
         callback: Callable[[WeatheringSolver], None] | None = None,
+        on_step: Callable[[WeatheringSolver], None] | None = None,
         progress: bool = False,
     ) -> None:
         """Advance ``iterations`` steps.
@@ -354,6 +358,8 @@ class WeatheringSolver:
             checked.
         callback : callable, optional
             ``callback(solver)`` at every output step.
+        on_step : callable, optional
+            ``on_step(solver)`` after every accepted step (progress reports).
         progress : bool, default: False
             Show a tqdm progress bar.
         """
@@ -377,6 +383,8 @@ class WeatheringSolver:
                     bar.update(self.step_count - done)
                     bar.set_postfix(retries=self.retries, collapses=self.collapses)
                     done = self.step_count
+                if on_step is not None:
+                    on_step(self)
                 if at_output and callback is not None:
                     callback(self)
         finally:

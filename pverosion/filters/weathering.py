@@ -1,0 +1,165 @@
+"""Weathering filter: curvature-driven vertex displacement over time steps."""
+
+from __future__ import annotations
+
+import numpy as np
+from vtkmodules.util import numpy_support
+from vtkmodules.vtkCommonCore import vtkPoints
+from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline as SDDP
+
+from pverosion.filters.base import (
+    ErosionFilter,
+    Param,
+    polydata_triangles,
+    replace_triangles,
+    set_field_value,
+    set_point_array,
+)
+from pverosion.kernels.orientation import ORIENTATIONS
+from pverosion.kernels.weathering import DIRECTIONS, Erodibility, WeatheringSolver
+
+__all__ = ["Weathering", "weathering_output"]
+
+
+def weathering_output(solver: WeatheringSolver, source, out) -> None:
+    """Fill vtkPolyData ``out`` with the solver's current mesh and its arrays.
+
+    Point arrays of ``source`` are carried to the surviving vertices. Adds
+    ``mean_curvature``, ``displacement`` (cumulative vector), ``erosion_depth``
+    (cumulative displacement into the original surface, along the original
+    inward normal) and, as field data, one ``weathering_<statistic>`` series
+    per step (step 0 first), ``retries`` and ``frozen_vertices``.
+    """
+    out.ShallowCopy(source)
+    points = vtkPoints()  # a new object: the shallow copy shares the input's points
+    points.SetData(numpy_support.numpy_to_vtk(solver.points, deep=True))
+    out.SetPoints(points)
+    replace_triangles(out, solver.faces)
+    src_pd, out_pd = source.GetPointData(), out.GetPointData()
+    out_pd.Initialize()
+    for k in range(src_pd.GetNumberOfArrays()):
+        arr = src_pd.GetAbstractArray(k)
+        if arr is None or arr.GetName() is None or not hasattr(arr, "GetNumberOfComponents"):
+            continue
+        values = numpy_support.vtk_to_numpy(arr)
+        carried = numpy_support.numpy_to_vtk(np.ascontiguousarray(values[solver.ids]), deep=True)
+        carried.SetName(arr.GetName())
+        out_pd.AddArray(carried)
+    if len(solver.faces) != source.GetNumberOfCells():
+        out.GetCellData().Initialize()  # faces were collapsed: per-face input data no longer applies
+    set_point_array(out, "mean_curvature", solver.mean_curvature())
+    set_point_array(out, "displacement", solver.displacement)
+    depth = -np.einsum("ij,ij->i", solver.displacement, solver.initial_normals[solver.ids])
+    set_point_array(out, "erosion_depth", depth)
+    out_pd.SetActiveScalars("mean_curvature")
+    for name, series in solver.statistics.items():
+        set_field_value(out, f"weathering_{name}", series)
+    set_field_value(out, "retries", solver.retries)
+    set_field_value(out, "frozen_vertices", solver.frozen)
+
+
+class Weathering(ErosionFilter):
+    """Curvature-driven weathering (Skorkovská et al. 2019, §3.3).
+
+    Convex vertices move along the unit uniform Laplacian by
+    ``H^n * e_avg / x`` per step, small triangles are collapsed after every
+    step, and a periodic self-intersection guard rolls back and shortens the
+    steps where the surface tangles. The output publishes TIME_STEPS
+    0..iterations (time n = step n); requesting a later time continues from
+    the cached state, an earlier one restarts.
+
+    Output point arrays: ``mean_curvature``, ``displacement``,
+    ``erosion_depth``; field data: per-step ``weathering_volume``,
+    ``weathering_area``, ``weathering_mean_abs_curvature``,
+    ``weathering_max_abs_curvature``, ``weathering_eroded_volume``,
+    ``weathering_retries``, ``weathering_collapses``, and ``retries``,
+    ``frozen_vertices``.
+    """
+
+    LABEL = "Weathering (curvature-driven)"
+    COMMAND = "weather"
+    TIME_DEPENDENT = True
+    PARAMS = (
+        Param("iterations", 100, "Number of weathering steps (time steps 0..iterations).", minimum=0),
+        Param("power", 1.0, "Power modifier n >= 1 of the curvature (eq. 5): larger spares flat regions.",
+              minimum=1.0),
+        Param("step_divisor", 10.0, "Divisor x: the largest displacement per step is e_avg / x.", minimum=1e-6),
+        Param("direction", "laplacian", "Displacement direction: unit uniform Laplacian or inward normal.",
+              choices=DIRECTIONS),
+        Param("min_edge_ratio", 0.1, "Collapse edges shorter than this times e_avg after every step (0: off).",
+              minimum=0.0, maximum=0.99),
+        Param("check_every", 10, "Self-intersection guard period in steps (0: off).", minimum=0),
+        Param("erodibility_array", "", "Input point array used as per-vertex erodibility (empty: uniform)."),
+        Param("orientation", "outward", "Face orientation to use (outward: convex regions erode).",
+              choices=ORIENTATIONS),
+    )
+
+    def __init__(self, *, erodibility: Erodibility = None, **options):
+        super().__init__(**options)
+        self._erodibility = erodibility
+        self._solver: WeatheringSolver | None = None
+        self._key: tuple | None = None
+        self._time: float | None = None
+
+    def set_erodibility(self, erodibility: Erodibility) -> None:
+        """Per-vertex array (V,) or callable of points (N, 3) -> (N,); None for uniform."""
+        self._erodibility = erodibility
+        self.Modified()
+
+    def RequestInformation(self, request, in_info, out_info):
+        """Publish the time steps 0..iterations."""
+        n = self.get_option("iterations")
+        info = out_info.GetInformationObject(0)
+        info.Set(SDDP.TIME_STEPS(), [float(t) for t in range(n + 1)], n + 1)
+        info.Set(SDDP.TIME_RANGE(), [0.0, float(n)], 2)
+        return 1
+
+    def RequestData(self, request, in_info, out_info):
+        """Read the requested time, then run :meth:`execute`."""
+        info = out_info.GetInformationObject(0)
+        self._time = info.Get(SDDP.UPDATE_TIME_STEP()) if info.Has(SDDP.UPDATE_TIME_STEP()) else None
+        return super().RequestData(request, in_info, out_info)
+
+    def _erodibility_for(self, inp):
+        name = self.get_option("erodibility_array")
+        if not name:
+            return self._erodibility
+        arr = inp.GetPointData().GetArray(name)
+        if arr is None:
+            raise ValueError(f"erodibility_array {name!r} is not a point array of the input")
+        values = numpy_support.vtk_to_numpy(arr)
+        if values.ndim != 1:
+            raise ValueError(f"erodibility_array {name!r} must have one component; got {values.shape[1]}")
+        return values
+
+    def execute(self, inp, out) -> None:
+        """Advance (or restart) the cached solver to the requested step and fill ``out``."""
+        n = self.get_option("iterations")
+        step = n if self._time is None else int(round(min(max(self._time, 0.0), float(n))))
+        key = (inp.GetMTime(), self.GetMTime())
+        if self._solver is None or self._key != key or self._solver.step_count > step:
+            points, faces = polydata_triangles(inp)
+            self._solver = None
+            self._solver = WeatheringSolver(
+                points,
+                faces,
+                power=self.get_option("power"),
+                step_divisor=self.get_option("step_divisor"),
+                direction=self.get_option("direction"),
+                erodibility=self._erodibility_for(inp),
+                min_edge_ratio=self.get_option("min_edge_ratio"),
+                check_every=self.get_option("check_every"),
+                orientation=self.get_option("orientation"),
+            )
+            self._key = key
+        solver = self._solver
+        start = solver.step_count
+        total = max(step - start, 1)
+
+        def progress(s: WeatheringSolver) -> None:
+            self.UpdateProgress(min((s.step_count - start) / total, 1.0))
+
+        solver.run(step - start, outputs=[step], on_step=progress)
+        weathering_output(solver, inp, out)
+        out.GetInformation().Set(out.DATA_TIME_STEP(), float(step))
+
