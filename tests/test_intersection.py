@@ -1,0 +1,82 @@
+import numpy as np
+import pytest
+from conftest import icosphere
+
+from pverosion.examples import load_torus
+from pverosion.kernels.intersection import (
+    intersecting_faces,
+    intersecting_pairs,
+    spatial_order,
+    triangles_intersect,
+)
+
+T = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+
+@pytest.mark.parametrize(
+    ("other", "expected"),
+    [
+        ([[0.2, 0.2, -1.0], [0.2, 0.2, 1.0], [0.3, 0.9, 0.0]], True),  # pierces T
+        ([[0, 0, 1.0], [1, 0, 1.0], [0, 1, 1.0]], False),  # parallel, above
+        ([[0.2, 0.2, 0.0], [2.0, 0.2, 0.0], [0.2, 2.0, 0.0]], True),  # coplanar, overlapping
+        ([[2.0, 2.0, 0.0], [3.0, 2.0, 0.0], [2.0, 3.0, 0.0]], False),  # coplanar, apart
+        ([[1.0, 0.0, 0.0], [2.0, 0.0, 1.0], [2.0, 1.0, -1.0]], True),  # touches T's corner
+        ([[0.6, 0.6, -1.0], [0.6, 0.6, 1.0], [2.0, 2.0, 0.0]], False),  # passes beside the hypotenuse
+    ],
+)
+def test_triangle_pairs(other, expected):
+    assert triangles_intersect(T, np.array(other, dtype=float)) is expected
+    assert triangles_intersect(np.array(other, dtype=float), T) is expected
+
+
+def test_grid_agrees_with_brute_force_on_random_soups():
+    rng = np.random.default_rng(7)
+    for _ in range(3):
+        n = 150
+        centre = rng.random((n, 1, 3))
+        points = (centre + 0.1 * rng.standard_normal((n, 3, 3))).reshape(-1, 3)
+        faces = np.arange(3 * n).reshape(-1, 3)
+        expected = np.zeros(n, bool)
+        pairs = set()
+        for i in range(n):
+            for j in range(i + 1, n):
+                if triangles_intersect(points[faces[i]], points[faces[j]]):
+                    expected[i] = expected[j] = True
+                    pairs.add((i, j))
+        assert expected.any()
+        assert np.array_equal(intersecting_faces(points, faces), expected)
+        assert {tuple(p) for p in intersecting_pairs(points, faces)} == pairs
+
+
+def test_clean_closed_meshes_have_no_intersections():
+    s = icosphere(1.0, 5)
+    assert not intersecting_faces(s.points, s.regular_faces).any()
+    torus = load_torus(n_major=120, n_minor=60)
+    assert not intersecting_faces(torus.points, torus.regular_faces).any()
+
+
+def test_pushed_vertex_is_detected_and_order_only_affects_speed():
+    s = icosphere(1.0, 3)
+    points = np.array(s.points)
+    faces = s.regular_faces
+    before = points.copy()
+    points[0] = -1.5 * points[0]  # through the sphere: its fan now crosses the far side
+    hits = intersecting_faces(points, faces)
+    fan = (faces == 0).any(axis=1)
+    assert hits[fan].any() and hits[~fan].any()
+    stale = spatial_order(before, faces)
+    assert np.array_equal(intersecting_faces(points, faces, order=stale), hits)
+    assert np.array_equal(intersecting_faces(points, faces, query=fan), hits)
+    assert not intersecting_faces(points, faces, query=~fan & ~hits).any()
+
+
+def test_bunny_scan_does_not_self_intersect(bunny):
+    assert not intersecting_faces(bunny.points, bunny.regular_faces).any()
+
+
+def test_bad_input():
+    with pytest.raises(ValueError, match="shape"):
+        triangles_intersect(np.zeros((4, 3)), T)
+    s = icosphere(1.0, 2)
+    with pytest.raises(ValueError, match="query must have shape"):
+        intersecting_faces(s.points, s.regular_faces, query=np.ones(3, bool))
