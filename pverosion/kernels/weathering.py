@@ -31,6 +31,7 @@ which is why it is periodic rather than per step.
 
 from __future__ import annotations
 
+import time
 import warnings
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -157,6 +158,10 @@ class WeatheringSolver:
         Steps done (time).
     retries : int
         Rollbacks made by the self-intersection guard.
+    profile : dict or None
+        Set it to ``{}`` to collect the seconds spent per part of each step
+        ("curvature", "laplacian", "displacement", "improvement" with the
+        statistics, "guard").
 
     Examples
     --------
@@ -211,6 +216,7 @@ class WeatheringSolver:
         self.step_count = 0
         self.retries = 0
         self.collapses = 0
+        self.profile: dict[str, list[float]] | None = None
         self._scale = np.ones(len(pts))  # displacement length factor per input vertex
         self._origin = pts.mean(axis=0)
         self._build_topology()
@@ -305,23 +311,35 @@ class WeatheringSolver:
         """Mean curvature H (V',) of the current mesh."""
         return self._curvature(self.points).mean
 
+    def _lap(self, part: str, start: float) -> float:
+        """Add the time since ``start`` to :attr:`profile` (when profiling) and restart the clock."""
+        now = time.perf_counter()
+        if self.profile is not None:
+            self.profile.setdefault(part, []).append(now - start)
+        return now
+
     def _step(self) -> None:
+        clock = time.perf_counter()
         curv = self._curvature(self.points)
         h = curv.mean
+        clock = self._lap("curvature", clock)
         e_avg = average_edge_length(self.points, self.faces, edges=self._edges)
         if self.direction == "laplacian":
             direction = np.asarray(self._laplacian @ self.points)
         else:
             direction = -curv.normals
+        clock = self._lap("laplacian", clock)
         factor = self._erodibility_now() * self._scale[self.ids]
         new, moved = _displace(self.points, direction, normalize_symmetric(h), h, e_avg, self.power,
                                e_avg / self.step_divisor, factor, self._fixed, self.direction == "laplacian")
         self.points = new
         self.displacement += moved
+        clock = self._lap("displacement", clock)
         if self.min_edge_ratio > 0.0:
             self._improve(self.min_edge_ratio * e_avg)
         self.step_count += 1
         self._stats.append(self._row(h))
+        self._lap("improvement", clock)
 
     def _improve(self, min_length: float) -> None:
         candidates = short_edge_candidates(self.points, self._edges, self._usable, min_length)
@@ -398,7 +416,9 @@ class WeatheringSolver:
 
     def _accept(self) -> bool:
         """Check the mesh; keep it as the restart point, or roll back and shorten local steps."""
+        clock = time.perf_counter()
         hits = self._intersections()
+        self._lap("guard", clock)
         if np.count_nonzero(hits) <= self._baseline:
             self._clean = self._snapshot()
             return True
