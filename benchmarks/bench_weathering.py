@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 import pyvista as pv
 
-from pverosion.kernels.normalize import normalize_symmetric
 from pverosion.kernels.geometry import average_edge_length
 from pverosion.kernels.laplacian import uniform_laplacian
+from pverosion.kernels.normalize import normalize_symmetric
 from pverosion.kernels.orientation import orient_faces
 from pverosion.kernels.weathering import WeatheringSolver, _displace
 

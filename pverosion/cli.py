@@ -36,10 +36,9 @@ def build_parser() -> argparse.ArgumentParser:
     """The ``pverosion`` argument parser."""
     parser = argparse.ArgumentParser(prog="pverosion", description="Erosion simulation on 3D meshes and voxel fields.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    demo = sub.add_parser("demo", help="run the main job on a procedural model and write .vtp and .png results")
+    demo = sub.add_parser("demo", help="weather a cube into a sphere; write the .pvd series and .png figures")
     demo.add_argument("-o", "--output-dir", type=Path, default=Path("pverosion_demo"),
                       help="folder for the results (default: pverosion_demo)")
-    demo.add_argument("--seed", type=int, default=0, help="random seed of the procedural model (default: 0)")
     for filter_cls in ALL_FILTERS:
         cmd = sub.add_parser(_command_name(filter_cls), help=filter_cls.LABEL, description=filter_cls.__doc__,
                              formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -122,20 +121,15 @@ def _run_stage(args: argparse.Namespace) -> None:
 def _run_demo(args: argparse.Namespace) -> None:
     import numpy as np
 
-    from pverosion import api
-    from pverosion.examples import load_rock
-    from pverosion.io import write_atomic
-    from pverosion.plotting import render_scalars
+    from pverosion.scenes import cube_to_sphere
 
     out = args.output_dir
-    rock = load_rock(seed=args.seed)
-    result = api.curvature(rock, normalization="symmetric")
-    H = result["mean_curvature"]
-    surface = write_atomic(result, out / "curvature.vtp")
-    image = render_scalars(result, out / "curvature.png")
-    print(f"demo: procedural rock with {rock.n_points} vertices, {rock.n_cells} triangles")
-    print(f"  mean curvature H in [{H.min():.3f}, {H.max():.3f}], median {np.median(H):.3f}")
-    print(f"  wrote {surface} and {image}")
+    run = cube_to_sphere(out)
+    print("demo: weathering a 10 x 10 per face cube into a sphere (Skorkovská 2019, Figure 6)")
+    for step, mesh in zip(run.steps, run.meshes):
+        d = np.linalg.norm(mesh.points - mesh.points.mean(axis=0), axis=1)
+        print(f"  step {step:4d}: distance to centroid varies by {100 * d.std() / d.mean():5.2f} %")
+    print(f"  wrote {run.series}, {out / 'cube_to_sphere.png'} and {out / 'cube_to_sphere_statistics.png'}")
 
 
 def main(argv: list[str] | None = None) -> int:

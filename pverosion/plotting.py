@@ -11,7 +11,7 @@ from matplotlib.colors import LinearSegmentedColormap
 
 from pverosion.io import atomic_path
 
-__all__ = ["CURVATURE_CMAP", "curvature_cmap", "render_scalars"]
+__all__ = ["CURVATURE_CMAP", "curvature_cmap", "plot_statistics", "render_scalars", "render_strip"]
 
 CURVATURE_CMAP = "pverosion_curvature"
 """Name of the registered blue-green-red colour map (Skorkovská 2019, Figure 2)."""
@@ -69,4 +69,93 @@ def render_scalars(
     with atomic_path(path) as tmp:
         plotter.screenshot(str(tmp))
     plotter.close()
+    return path
+
+
+def render_strip(
+    rows: list[list],
+    path: str | os.PathLike,
+    *,
+    labels: list[list[str]] | None = None,
+    scalars: str = "mean_curvature",
+    panel_size: tuple[int, int] = (360, 360),
+    percentile: float = 98.0,
+) -> Path:
+    """Render a grid of meshes (one row per list) with the curvature colour map to one PNG.
+
+    Each panel has colour limits symmetric about zero at the given
+    percentile of its own ``|scalars|`` (curvature is scale-dependent), so
+    green marks flat regions everywhere. All panels share one camera
+    direction.
+
+    Parameters
+    ----------
+    rows : list of list of pyvista.PolyData
+    path : str or path-like
+        PNG file to write (atomically).
+    labels : list of list of str, optional
+        Text in the corner of each panel.
+    scalars : str, default: "mean_curvature"
+    panel_size : tuple of int, default: (360, 360)
+    percentile : float, default: 98.0
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    if not os.environ.get("DISPLAY"):
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    import pyvista as pv
+
+    n_rows, n_cols = len(rows), max(len(r) for r in rows)
+    plotter = pv.Plotter(off_screen=True, shape=(n_rows, n_cols),
+                         window_size=[panel_size[0] * n_cols, panel_size[1] * n_rows], border=False)
+    for i, row in enumerate(rows):
+        for j, mesh in enumerate(row):
+            plotter.subplot(i, j)
+            values = np.asarray(mesh[scalars])
+            limit = float(np.percentile(np.abs(values), percentile)) or 1.0
+            plotter.add_mesh(mesh, scalars=scalars, cmap=curvature_cmap(), clim=(-limit, limit),
+                             smooth_shading=True, show_scalar_bar=False)
+            if labels is not None:
+                plotter.add_text(labels[i][j], font_size=10, position="upper_left")
+            plotter.view_isometric()
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        plotter.screenshot(str(tmp))
+    plotter.close()
+    return path
+
+
+def plot_statistics(series: dict[str, dict[str, np.ndarray]], path: str | os.PathLike) -> Path:
+    """Chart per-step statistics of one or more runs (one line per run) to a PNG.
+
+    Parameters
+    ----------
+    series : dict
+        Run label -> statistics as returned by
+        :attr:`pverosion.kernels.weathering.WeatheringSolver.statistics`.
+    path : str or path-like
+        PNG file to write (atomically).
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = [("volume", "volume"), ("area", "surface area"), ("mean_abs_curvature", "mean |H|"),
+              ("max_abs_curvature", "max |H|"), ("eroded_volume", "eroded volume"), ("retries", "guard retries")]
+    fig, axes = plt.subplots(2, 3, figsize=(12, 6), constrained_layout=True)
+    for ax, (key, title) in zip(axes.ravel(), panels):
+        for label, stats in series.items():
+            ax.plot(np.arange(len(stats[key])), stats[key], label=label)
+        ax.set_title(title)
+        ax.set_xlabel("step")
+    axes[0, 0].legend()
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=100, format="png")
+    plt.close(fig)
     return path

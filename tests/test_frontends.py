@@ -52,8 +52,27 @@ def test_cli_reports_bad_input(tmp_path, capsys):
 
 def test_demo_writes_results(tmp_path):
     assert main(["demo", "-o", str(tmp_path)]) == 0
-    surface = pv.read(tmp_path / "curvature.vtp")
-    H = surface["mean_curvature"]
-    assert H.max() > 0 > H.min()  # a rock with bumps and dents
-    assert np.abs(surface["mean_curvature_normalized"]).max() == pytest.approx(1.0)
-    assert (tmp_path / "curvature.png").stat().st_size > 10_000
+    reader = pv.get_reader(tmp_path / "cube_to_sphere.pvd")
+    assert reader.time_values == [0.0, 30.0, 100.0, 200.0]
+    reader.set_active_time_value(200.0)
+    sphere = reader.read()[0]
+    d = np.linalg.norm(sphere.points - sphere.points.mean(axis=0), axis=1)
+    assert d.std() / d.mean() <= 0.02
+    assert len(sphere.field_data["weathering_volume"]) == 201
+    for name in ("cube_to_sphere.png", "cube_to_sphere_statistics.png"):
+        assert (tmp_path / name).stat().st_size > 10_000
+
+
+def test_cli_weather_series_and_errors(tmp_path, capsys):
+    from pverosion.examples import load_cube
+
+    load_cube(resolution=6).save(tmp_path / "cube.vtp")
+    out = tmp_path / "w.vtp"
+    args = ["weather", str(tmp_path / "cube.vtp"), "-o", str(out), "--iterations", "12", "--power", "2"]
+    assert main([*args, "--save-every", "5", "--series", str(tmp_path / "run.pvd")]) == 0
+    assert pv.get_reader(tmp_path / "run.pvd").time_values == [0.0, 5.0, 10.0, 12.0]
+    final = pv.read(out)
+    assert len(final.field_data["weathering_volume"]) == 13
+    assert main([*args, "--series", str(tmp_path / "x.pvd")]) == 2
+    assert "--series needs --save-every" in capsys.readouterr().err
+    assert main([*args, "--save-every", "0"]) == 2

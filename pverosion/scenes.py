@@ -1,0 +1,104 @@
+"""Reproductions of the papers' scenes, shared by ``pipelines/`` and ``pverosion demo``.
+
+Each scene writes its results atomically: the surface at every checkpoint as
+a ``.pvd`` time series, a PNG strip rendered off-screen with the curvature
+colour coding, and a chart of the per-step statistics.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import pyvista as pv
+
+from pverosion.filters.weathering import weathering_output
+from pverosion.io import TimeSeriesWriter
+from pverosion.kernels.weathering import WeatheringSolver
+from pverosion.plotting import plot_statistics, render_strip
+
+__all__ = ["WeatheringRun", "cube_to_sphere", "power_modifier", "weathering_checkpoints"]
+
+
+@dataclass(frozen=True)
+class WeatheringRun:
+    """Outputs of one weathering run at its checkpoints."""
+
+    label: str
+    steps: list[int]
+    meshes: list[pv.PolyData]
+    statistics: dict
+    retries: int
+    series: Path
+
+
+def weathering_checkpoints(
+    mesh: pv.PolyData, checkpoints: list[int], series: Path, *, label: str = "", progress: bool = True, **options
+) -> WeatheringRun:
+    """Weather ``mesh`` and keep (and write to the ``.pvd`` ``series``) the surface at each checkpoint.
+
+    Parameters
+    ----------
+    mesh : pyvista.PolyData
+    checkpoints : list of int
+        Steps to keep; 0 keeps the input.
+    series : pathlib.Path
+        ``.pvd`` file of the kept steps.
+    label : str
+        Name of the run in charts.
+    progress : bool, default: True
+        Show a progress bar.
+    **options
+        Options of :class:`~pverosion.kernels.weathering.WeatheringSolver`.
+
+    Returns
+    -------
+    WeatheringRun
+    """
+    steps = sorted(set(checkpoints))
+    solver = WeatheringSolver(mesh.points, mesh.regular_faces, **options)
+    meshes: list[pv.PolyData] = []
+    writer = TimeSeriesWriter(series)
+
+    def keep(s: WeatheringSolver) -> None:
+        out = pv.PolyData()
+        weathering_output(s, mesh, out)
+        meshes.append(out)
+        writer.write(out, time=s.step_count)
+
+    if steps and steps[0] == 0:
+        keep(solver)
+    solver.run(steps[-1], outputs=steps, callback=keep, progress=progress)
+    return WeatheringRun(label, steps, meshes, solver.statistics, solver.retries, writer.path)
+
+
+def cube_to_sphere(out_dir: Path, *, resolution: int = 10, checkpoints=(0, 30, 100, 200)) -> WeatheringRun:
+    """Skorkovská 2019, Figure 6: a cube weathered into a sphere (n = 1).
+
+    Writes ``cube_to_sphere.pvd`` (+ folder), ``cube_to_sphere.png`` (strip)
+    and ``cube_to_sphere_statistics.png`` into ``out_dir``.
+    """
+    from pverosion.examples import load_cube
+
+    out_dir = Path(out_dir)
+    run = weathering_checkpoints(load_cube(resolution=resolution), list(checkpoints),
+                                 out_dir / "cube_to_sphere.pvd", label="cube, n = 1", power=1.0)
+    render_strip([run.meshes], out_dir / "cube_to_sphere.png", labels=[[f"step {s}" for s in run.steps]])
+    plot_statistics({run.label: run.statistics}, out_dir / "cube_to_sphere_statistics.png")
+    return run
+
+
+def power_modifier(mesh: pv.PolyData, out_dir: Path, *, powers=(1.0, 2.0, 3.0),
+                   checkpoints=(0, 20, 50, 100, 200)) -> list[WeatheringRun]:
+    """Skorkovská 2019, Figure 7: one row per power modifier n, columns at the checkpoints.
+
+    Writes ``power_n<n>.pvd`` per row, ``power_modifier.png`` (rows of
+    renders) and ``power_modifier_statistics.png`` into ``out_dir``.
+    """
+    out_dir = Path(out_dir)
+    runs = [weathering_checkpoints(mesh, list(checkpoints), out_dir / f"power_n{n:g}.pvd", label=f"n = {n:g}",
+                                   power=float(n)) for n in powers]
+    render_strip([r.meshes for r in runs], out_dir / "power_modifier.png",
+                 labels=[[f"n = {r.label[4:]}, step {s}" for s in r.steps] for r in runs])
+    plot_statistics({r.label: r.statistics for r in runs}, out_dir / "power_modifier_statistics.png")
+    return runs
