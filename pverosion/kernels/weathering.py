@@ -293,11 +293,19 @@ class WeatheringSolver:
         if faces_changed:
             self._build_topology()
 
-    def _intersections(self) -> np.ndarray:
-        """Mask (F,) of the faces meeting a non-adjacent face."""
+    def _intersections(self, query: np.ndarray | None = None) -> np.ndarray:
+        """Mask (F,) of the faces meeting a non-adjacent face (in pairs with a ``query`` face)."""
         if self._order is None:
             self._order = spatial_order(self.points, self.faces)
-        return intersecting_faces(self.points, self.faces, order=self._order)
+        return intersecting_faces(self.points, self.faces, query=query, order=self._order)
+
+    def _moved_faces(self) -> np.ndarray | None:
+        """Faces with a vertex moved since the restart point, when no collapse happened since."""
+        clean = self._clean
+        if self._baseline or len(clean.faces) != len(self.faces) or not np.array_equal(clean.faces, self.faces):
+            return None  # a self-intersecting input is always compared whole against its baseline
+        moved = np.any(self.points != clean.points, axis=1)
+        return moved[self.faces].any(axis=1)
 
     def _row(self, mean_curvature: np.ndarray) -> tuple:
         volume, area = _volume_area(self.points, self.faces, self._origin)
@@ -417,7 +425,8 @@ class WeatheringSolver:
     def _accept(self) -> bool:
         """Check the mesh; keep it as the restart point, or roll back and shorten local steps."""
         clock = time.perf_counter()
-        hits = self._intersections()
+        # faces that both kept their place were clean at the restart point and still are
+        hits = self._intersections(self._moved_faces())
         self._lap("guard", clock)
         if np.count_nonzero(hits) <= self._baseline:
             self._clean = self._snapshot()
