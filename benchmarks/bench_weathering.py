@@ -21,23 +21,23 @@ import numpy as np
 import pyvista as pv
 
 from pverosion.kernels.geometry import average_edge_length
-from pverosion.kernels.laplacian import uniform_laplacian
+from pverosion.kernels.laplacian import laplacian_vectors
 from pverosion.kernels.normalize import normalize_symmetric
 from pverosion.kernels.orientation import orient_faces
+from pverosion.kernels.topology import edge_topology, one_ring
 from pverosion.kernels.weathering import WeatheringSolver, _displace
 
 DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
 
 
-def vtk_iteration(mesh: pv.PolyData, laplacian, edges, fixed) -> pv.PolyData:
-    """One weathering step with vtkCurvatures as the curvature estimator."""
+def vtk_iteration(mesh: pv.PolyData, ring, edges, fixed, displacement) -> pv.PolyData:
+    """One weathering step with vtkCurvatures as the curvature estimator, the same displacement."""
     h = np.asarray(mesh.curvature("mean"), dtype=np.float64)
     points = np.asarray(mesh.points, dtype=np.float64)
     e_avg = average_edge_length(points, None, edges=edges)
-    direction = np.asarray(laplacian @ points)
-    new, _ = _displace(points, direction, normalize_symmetric(h), h, e_avg, 1.0, e_avg / 10.0,
-                       np.ones(len(points)), fixed, True)
-    mesh.points = new
+    direction = laplacian_vectors(points, None, ring=ring)
+    mesh.points = _displace(points, direction, True, normalize_symmetric(h), h, e_avg, 1.0, e_avg / 10.0,
+                            np.ones(len(points)), fixed, displacement)
     return mesh
 
 
@@ -51,16 +51,15 @@ def main() -> None:
     points = np.asarray(scan.points, dtype=np.float64)
     faces = orient_faces(points, scan.regular_faces).faces
 
-    from pverosion.kernels.topology import edge_topology
-
     topo = edge_topology(faces, len(points))
-    laplacian = uniform_laplacian(faces, len(points), edges=topo.edges)
+    ring = one_ring(faces, len(points), edges=topo.edges)
     fixed = np.zeros(len(points), bool)
     fixed[topo.edges[topo.face_count != 2].ravel()] = True
     mesh = pv.PolyData.from_regular_faces(points.copy(), faces)
+    vtk_displacement = np.zeros_like(points)
 
     WeatheringSolver(points, faces).run(12)  # warm-up: numba compilation / cache load
-    vtk_iteration(mesh, laplacian, topo.edges, fixed)
+    vtk_iteration(mesh, ring, topo.edges, fixed, vtk_displacement)
     solver = WeatheringSolver(points, faces)
     solver.profile = {}
     vtk_times = []
@@ -69,7 +68,7 @@ def main() -> None:
     def interleave(_solver) -> None:
         # one VTK-based iteration after every pverosion step, timed apart, so both see the same machine
         now = time.perf_counter()
-        vtk_iteration(mesh, laplacian, topo.edges, fixed)
+        vtk_iteration(mesh, ring, topo.edges, fixed, vtk_displacement)
         vtk_times.append(1e3 * (time.perf_counter() - now))
         stamps.append(now - 1e-3 * sum(vtk_times[:-1]))
 

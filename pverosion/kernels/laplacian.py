@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from numba import njit
+from numba import njit, prange
 
 from pverosion.kernels.topology import one_ring
 
@@ -65,17 +65,39 @@ def uniform_laplacian(faces: np.ndarray, n_vertices: int, *, edges: np.ndarray |
     return sp.csr_matrix((data, out_idx, out_ptr), shape=(n_vertices, n_vertices))
 
 
-def laplacian_vectors(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Uniform Laplacian vectors L_i of every vertex.
+@njit(cache=True, error_model="numpy", parallel=True)
+def _ring_mean_offsets(points, ring_ptr, ring_idx):
+    out = np.zeros_like(points)
+    for i in prange(points.shape[0]):
+        start, stop = ring_ptr[i], ring_ptr[i + 1]
+        if stop == start:
+            continue
+        for d in range(3):
+            total = 0.0
+            for s in range(start, stop):
+                total += points[ring_idx[s], d]
+            out[i, d] = total / (stop - start) - points[i, d]
+    return out
+
+
+def laplacian_vectors(
+    points: np.ndarray, faces: np.ndarray, *, ring: tuple[np.ndarray, np.ndarray] | None = None
+) -> np.ndarray:
+    """Uniform Laplacian vectors L_i of every vertex (seed eq. 2).
 
     Parameters
     ----------
     points : numpy.ndarray, shape (V, 3)
     faces : numpy.ndarray, shape (F, 3)
+    ring : tuple, optional
+        Reuse the one-ring CSR of :func:`~pverosion.kernels.topology.one_ring`
+        (build it once per connectivity; this is the fast path of iterative
+        stages).
 
     Returns
     -------
     numpy.ndarray, shape (V, 3)
-        ``L_i = (1/|N(i)|) sum_{j in N(i)} (v_j - v_i)``.
+        ``L_i = (1/|N(i)|) sum_{j in N(i)} (v_j - v_i)``; zero for isolated vertices.
     """
-    return uniform_laplacian(faces, len(points)) @ points
+    ring_ptr, ring_idx = ring if ring is not None else one_ring(faces, len(points))
+    return _ring_mean_offsets(np.ascontiguousarray(points, dtype=np.float64), ring_ptr, ring_idx)

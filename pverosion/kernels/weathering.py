@@ -37,17 +37,18 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
 from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels.curvature import CurvatureOperator
 from pverosion.kernels.geometry import average_edge_length, vertex_normals
 from pverosion.kernels.intersection import intersecting_faces, spatial_order
-from pverosion.kernels.laplacian import uniform_laplacian
+from pverosion.kernels.laplacian import laplacian_vectors
 from pverosion.kernels.normalize import normalize_symmetric
 from pverosion.kernels.orientation import ORIENTATIONS, orient_faces
 from pverosion.kernels.remesh import collapse_short_edges, short_edge_candidates
-from pverosion.kernels.topology import edge_topology
+from pverosion.kernels.topology import edge_topology, one_ring
 from pverosion.kernels.validation import as_triangle_mesh
 
 __all__ = ["DIRECTIONS", "STAT_NAMES", "WeatheringSolver"]
@@ -78,25 +79,26 @@ def _volume_area(points, faces, origin):
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
-def _displace(points, direction, h_norm, h_raw, e_avg, power, length, erod, fixed, unit):
-    """New points and the displacement vectors of one step."""
-    n = points.shape[0]
+def _displace(points, direction, unit, h_norm, h_raw, e_avg, power, length, factor, fixed, displacement):
+    """Points after one step along ``direction`` (made unit length when ``unit``).
+
+    Adds each vertex's step to ``displacement`` in place.
+    """
     out = points.copy()
-    moved = np.zeros((n, 3))
-    for i in prange(n):
-        if fixed[i] or h_norm[i] <= 0.0 or h_raw[i] * e_avg <= FLAT:
+    for i in prange(points.shape[0]):
+        if fixed[i] or h_norm[i] <= 0.0 or h_raw[i] * e_avg <= FLAT or factor[i] == 0.0:
             continue
-        d = (h_norm[i] ** power) * length * erod[i]
         vec = v3.row(direction, i)
         if unit:
             size = v3.norm(vec)
             if size == 0.0:
                 continue
             vec = v3.scale(vec, 1.0 / size)
-        step = v3.scale(vec, d)
-        v3.store(moved, i, step)
+        step = v3.scale(vec, (h_norm[i] ** power) * length * factor[i])
         v3.store(out, i, v3.add(v3.row(points, i), step))
-    return out, moved
+        for d in range(3):
+            displacement[i, d] += step[d]
+    return out
 
 
 @dataclass
@@ -250,8 +252,7 @@ class WeatheringSolver:
         return values.copy()
 
     def _erodibility_now(self) -> np.ndarray:
-        if self._erodibility is None:
-            return np.ones(len(self.points))
+        """Erodibility (V',) of the current vertices (an erodibility is set)."""
         if callable(self._erodibility):
             values = np.asarray(self._erodibility(self.points.copy()), dtype=np.float64)
             if values.shape != (len(self.points),):
@@ -268,7 +269,7 @@ class WeatheringSolver:
         n = len(self.points)
         self._curvature = CurvatureOperator(self.faces, n)
         topo = edge_topology(self.faces, n)
-        self._laplacian = uniform_laplacian(self.faces, n, edges=topo.edges)
+        self._ring = one_ring(self.faces, n, edges=topo.edges)
         self._edges = topo.edges
         self._usable = topo.face_count == 2
         self._fixed = np.zeros(n, bool)
@@ -331,17 +332,17 @@ class WeatheringSolver:
         curv = self._curvature(self.points)
         h = curv.mean
         clock = self._lap("curvature", clock)
-        e_avg = average_edge_length(self.points, self.faces, edges=self._edges)
         if self.direction == "laplacian":
-            direction = np.asarray(self._laplacian @ self.points)
+            direction = laplacian_vectors(self.points, self.faces, ring=self._ring)
         else:
             direction = -curv.normals
         clock = self._lap("laplacian", clock)
-        factor = self._erodibility_now() * self._scale[self.ids]
-        new, moved = _displace(self.points, direction, normalize_symmetric(h), h, e_avg, self.power,
-                               e_avg / self.step_divisor, factor, self._fixed, self.direction == "laplacian")
-        self.points = new
-        self.displacement += moved
+        e_avg = average_edge_length(self.points, self.faces, edges=self._edges)
+        factor = self._scale[self.ids]
+        if self._erodibility is not None:
+            factor *= self._erodibility_now()
+        self.points = _displace(self.points, direction, self.direction == "laplacian", normalize_symmetric(h), h,
+                                e_avg, self.power, e_avg / self.step_divisor, factor, self._fixed, self.displacement)
         clock = self._lap("displacement", clock)
         if self.min_edge_ratio > 0.0:
             self._improve(self.min_edge_ratio * e_avg)
@@ -434,7 +435,8 @@ class WeatheringSolver:
         # halve the steps of the tangled faces' vertices and their two-ring neighbourhood
         near = np.zeros(len(self.points))
         near[self.faces[hits].ravel()] = 1.0
-        pattern = self._laplacian != 0
+        ring_ptr, ring_idx = self._ring
+        pattern = sp.csr_matrix((np.ones(len(ring_idx)), ring_idx, ring_ptr), shape=(len(near), len(near)))
         near = near + pattern @ near
         near = near + pattern @ near
         ids = self.ids[near > 0]
