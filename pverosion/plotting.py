@@ -30,6 +30,21 @@ def curvature_cmap() -> LinearSegmentedColormap:
     return matplotlib.colormaps[CURVATURE_CMAP]
 
 
+def _offscreen_pyvista():
+    """PyVista, set up to render without a display (EGL) when there is none."""
+    if not os.environ.get("DISPLAY"):
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    import pyvista as pv
+
+    return pv
+
+
+def _symmetric_limits(values, percentile: float) -> tuple[float, float]:
+    """Colour limits ``(-L, L)`` with L the ``percentile`` of ``|values|``, so zero is the middle."""
+    limit = float(np.percentile(np.abs(np.asarray(values)), percentile)) or 1.0
+    return -limit, limit
+
+
 def render_scalars(
     mesh,
     path: str | os.PathLike,
@@ -56,14 +71,10 @@ def render_scalars(
     -------
     pathlib.Path
     """
-    if not os.environ.get("DISPLAY"):
-        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-    import pyvista as pv
-
-    values = np.asarray(mesh[scalars])
-    limit = float(np.percentile(np.abs(values), percentile)) or 1.0
+    pv = _offscreen_pyvista()
     plotter = pv.Plotter(off_screen=True, window_size=list(window_size))
-    plotter.add_mesh(mesh, scalars=scalars, cmap=curvature_cmap(), clim=(-limit, limit), smooth_shading=True)
+    plotter.add_mesh(mesh, scalars=scalars, cmap=curvature_cmap(), clim=_symmetric_limits(mesh[scalars], percentile),
+                     smooth_shading=True)
     plotter.view_isometric()
     path = Path(path)
     with atomic_path(path) as tmp:
@@ -103,20 +114,16 @@ def render_strip(
     -------
     pathlib.Path
     """
-    if not os.environ.get("DISPLAY"):
-        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-    import pyvista as pv
-
+    pv = _offscreen_pyvista()
     n_rows, n_cols = len(rows), max(len(r) for r in rows)
     plotter = pv.Plotter(off_screen=True, shape=(n_rows, n_cols),
                          window_size=[panel_size[0] * n_cols, panel_size[1] * n_rows], border=False)
     for i, row in enumerate(rows):
         for j, mesh in enumerate(row):
             plotter.subplot(i, j)
-            values = np.asarray(mesh[scalars])
-            limit = float(np.percentile(np.abs(values), percentile)) or 1.0
-            plotter.add_mesh(mesh, scalars=scalars, cmap=curvature_cmap(), clim=(-limit, limit),
-                             smooth_shading=True, show_scalar_bar=False)
+            plotter.add_mesh(mesh, scalars=scalars, cmap=curvature_cmap(),
+                             clim=_symmetric_limits(mesh[scalars], percentile), smooth_shading=True,
+                             show_scalar_bar=False)
             if labels is not None:
                 plotter.add_text(labels[i][j], font_size=10, position="upper_left")
             plotter.view_isometric()
