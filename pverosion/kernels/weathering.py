@@ -45,6 +45,7 @@ from pverosion.kernels.curvature import CurvatureOperator
 from pverosion.kernels.geometry import average_edge_length, vertex_normals
 from pverosion.kernels.intersection import intersecting_faces, spatial_order
 from pverosion.kernels.laplacian import laplacian_vectors
+from pverosion.kernels.materials import MaterialField
 from pverosion.kernels.normalize import normalize_symmetric
 from pverosion.kernels.orientation import ORIENTATIONS, orient_faces
 from pverosion.kernels.remesh import collapse_short_edges, short_edge_candidates
@@ -62,7 +63,7 @@ STAT_NAMES = ("volume", "area", "mean_abs_curvature", "max_abs_curvature", "erod
 FLAT = 1e-9
 """Vertices with ``H * e_avg <= FLAT`` count as flat (a radius above 10⁹ edge lengths)."""
 
-Erodibility = np.ndarray | Callable[[np.ndarray], np.ndarray] | None
+Erodibility = np.ndarray | Callable[[np.ndarray], np.ndarray] | MaterialField | None
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
@@ -131,11 +132,13 @@ class WeatheringSolver:
     direction : {"laplacian", "normal"}, default: "laplacian"
         Displacement direction: the unit uniform Laplacian (regularises the
         mesh) or the inward vertex normal (Figure 4 comparison).
-    erodibility : array_like of shape (V,), callable or None
+    erodibility : array_like of shape (V,), callable, MaterialField or None
         Non-negative multiplier of the displacement: one value per input
-        vertex (carried along through edge collapses), or a function of the
-        current points (N, 3) returning (N,) values, evaluated every step so
-        that erosion follows the material under each vertex *now*.
+        vertex (carried along through edge collapses), a function of the
+        current points (N, 3) returning (N,) values, or a material field
+        (:mod:`pverosion.kernels.materials`, erodibility = 1 / hardness), the
+        last two evaluated every step so that erosion follows the material
+        under each vertex *now*.
     min_edge_ratio : float, default: 0.1
         Mesh improvement: collapse edges shorter than ``min_edge_ratio *
         e_avg`` after every step; 0 switches it off.
@@ -242,7 +245,7 @@ class WeatheringSolver:
 
     @staticmethod
     def _check_erodibility(erodibility: Erodibility, n_vertices: int):
-        if erodibility is None or callable(erodibility):
+        if erodibility is None or callable(erodibility) or isinstance(erodibility, MaterialField):
             return erodibility
         values = np.asarray(erodibility, dtype=np.float64)
         if values.shape != (n_vertices,):
@@ -253,6 +256,8 @@ class WeatheringSolver:
 
     def _erodibility_now(self) -> np.ndarray:
         """Erodibility (V',) of the current vertices (an erodibility is set)."""
+        if isinstance(self._erodibility, MaterialField):
+            return self._erodibility.erodibility(self.points, ids=self.ids)
         if callable(self._erodibility):
             values = np.asarray(self._erodibility(self.points.copy()), dtype=np.float64)
             if values.shape != (len(self.points),):

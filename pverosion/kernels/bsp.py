@@ -1,0 +1,469 @@
+"""Binary space partitions with planes and implicit surfaces (thesis §11.4–11.5).
+
+Inner nodes hold a splitting surface F (``d < 0``: negative child,
+``d >= 0``: positive child); leaves hold a material id. Point location runs
+in numba over whole point arrays when every surface is built in, and level
+by level over NumPy arrays when a node holds a Python callable.
+
+:func:`build_from_triangles` grows a tree from oriented isosurface triangles
+with Algorithm 1 of the thesis: faces in a seeded Fisher–Yates order, each
+descending the tree and skipped when it lies in a plane already on its path.
+``method="complete"`` (C-BSP) clips a face that straddles a plane and sends
+each piece down its side, so every leaf is split only by faces that reach
+into it; ``method="simplified"`` (S-BSP) sends the whole face down the side
+of its centre.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numba import njit, prange
+
+from pverosion.kernels.surfaces import N_PARAMS, PLANE, USER, ImplicitSurface, surface_from_dict, surface_value
+
+__all__ = ["BSP_METHODS", "BSPNode", "BSPStats", "BSPTree", "build_from_triangles"]
+
+BSP_METHODS = ("complete", "simplified")
+"""Accepted values of the ``method`` option of the automated build."""
+
+NODE_BYTES = 24
+"""Bytes per node counted in the statistics, as in the thesis (Table 11.2)."""
+
+
+@dataclass(frozen=True)
+class BSPNode:
+    """An inner node for building trees by hand: children are nodes or material ids (leaves)."""
+
+    surface: ImplicitSurface
+    negative: BSPNode | int
+    positive: BSPNode | int
+
+
+@dataclass(frozen=True)
+class BSPStats:
+    """Statistics of an automated build (thesis Tables 11.1–11.2)."""
+
+    method: str
+    extracted_faces: int
+    inserted_faces: int
+    nodes: int
+    height: int
+    tree_bytes: int
+    volume_bytes: int
+    seed: int
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def _locate(points, kind, params, negative, positive, leaf):
+    n = points.shape[0]
+    material = np.empty(n, np.int64)
+    distance = np.empty(n)
+    for i in prange(n):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        node = 0
+        nearest = np.inf
+        while leaf[node] < 0:
+            d = surface_value(kind[node], params[node], x, y, z)
+            nearest = min(nearest, abs(d))
+            node = negative[node] if d < 0.0 else positive[node]
+        material[i] = leaf[node]
+        distance[i] = nearest
+    return material, distance
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def _locate_planes(points, planes, children, leaf):
+    """Plane-only trees: compact node records, no surface-kind dispatch."""
+    n = points.shape[0]
+    material = np.empty(n, np.int64)
+    distance = np.empty(n)
+    for i in prange(n):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        node = 0
+        nearest = np.inf
+        while leaf[node] < 0:
+            d = planes[node, 0] * x + planes[node, 1] * y + planes[node, 2] * z + planes[node, 3]
+            nearest = min(nearest, abs(d))
+            node = children[node, 0] if d < 0.0 else children[node, 1]
+        material[i] = leaf[node]
+        distance[i] = nearest
+    return material, distance
+
+
+@njit(cache=True, error_model="numpy")
+def _preorder(negative, positive, leaf):
+    """Depth-first order (negative child right after its parent): paths stay close in memory."""
+    n = leaf.shape[0]
+    order = np.empty(n, np.int64)
+    stack = np.empty(n, np.int64)
+    stack[0] = 0
+    top = 1
+    k = 0
+    while top > 0:
+        top -= 1
+        node = stack[top]
+        order[k] = node
+        k += 1
+        if leaf[node] < 0:
+            stack[top] = positive[node]
+            stack[top + 1] = negative[node]
+            top += 2
+    return order[:k]
+
+
+def _morton_order(points: np.ndarray) -> np.ndarray:
+    """Permutation of points along a 10-bit-per-axis Morton curve of their bounding box."""
+    lo = points.min(axis=0)
+    size = np.maximum(np.ptp(points, axis=0), 1e-300)
+    cells = np.minimum((points - lo) / size * 1024, 1023).astype(np.uint64)
+    code = np.zeros(len(points), np.uint64)
+    for bit in range(10):
+        for axis in range(3):
+            code |= ((cells[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
+    return np.argsort(code, kind="stable")
+
+
+class BSPTree:
+    """A BSP tree stored as flat arrays (one row per node).
+
+    Parameters
+    ----------
+    kind : numpy.ndarray, shape (n,), int64
+        Surface kind of each inner node (see :mod:`pverosion.kernels.surfaces`).
+    params : numpy.ndarray, shape (n, 8)
+        Surface parameters of each inner node.
+    negative, positive : numpy.ndarray, shape (n,), int64
+        Children of each inner node (-1 for leaves).
+    leaf : numpy.ndarray, shape (n,), int64
+        Material id of each leaf, -1 for inner nodes.
+    user : dict, optional
+        ``{node: UserSurface}`` for nodes evaluated in Python.
+    """
+
+    def __init__(self, kind, params, negative, positive, leaf, user: dict | None = None) -> None:
+        self.kind = np.ascontiguousarray(kind, dtype=np.int64)
+        self.params = np.ascontiguousarray(params, dtype=np.float64).reshape(-1, N_PARAMS)
+        self.negative = np.ascontiguousarray(negative, dtype=np.int64)
+        self.positive = np.ascontiguousarray(positive, dtype=np.int64)
+        self.leaf = np.ascontiguousarray(leaf, dtype=np.int64)
+        self.user = dict(user or {})
+        n = len(self.kind)
+        if n == 0:
+            raise ValueError("a BSP tree needs at least one node")
+        for name in ("params", "negative", "positive", "leaf"):
+            if len(getattr(self, name)) != n:
+                raise ValueError(f"BSP arrays must all have {n} rows; {name} has {len(getattr(self, name))}")
+        inner = self.leaf < 0
+        for child in (self.negative[inner], self.positive[inner]):
+            if np.any(child <= np.flatnonzero(inner)) or np.any(child >= n):
+                raise ValueError("BSP children must point forward to existing nodes (no cycles)")
+        self._planes = None
+        if not self.user and np.all(self.kind[inner] == PLANE):
+            self._planes = np.ascontiguousarray(self.params[:, :4])
+            self._children = np.ascontiguousarray(np.stack([self.negative, self.positive], axis=1), dtype=np.int32)
+
+    def preordered(self) -> BSPTree:
+        """The same tree with nodes renumbered depth first (faster location on big trees)."""
+        order = _preorder(self.negative, self.positive, self.leaf)
+        new_id = np.full(self.n_nodes, -1, np.int64)
+        new_id[order] = np.arange(len(order))
+        inner = self.leaf[order] < 0
+        negative = np.where(inner, new_id[self.negative[order]], -1)
+        positive = np.where(inner, new_id[self.positive[order]], -1)
+        user = {int(new_id[k]): v for k, v in self.user.items()}
+        return BSPTree(self.kind[order], self.params[order], negative, positive, self.leaf[order], user)
+
+    @classmethod
+    def from_nodes(cls, root: BSPNode | int) -> BSPTree:
+        """Flatten a hand-built tree of :class:`BSPNode` (leaves are material ids)."""
+        kind, params, negative, positive, leaf, user = [], [], [], [], [], {}
+
+        def add(node) -> int:
+            index = len(kind)
+            kind.append(0)
+            params.append(np.zeros(N_PARAMS))
+            negative.append(-1)
+            positive.append(-1)
+            if isinstance(node, BSPNode):
+                if not isinstance(node.surface, ImplicitSurface):
+                    raise TypeError(f"BSPNode.surface must be an ImplicitSurface; got {node.surface!r}")
+                leaf.append(-1)
+                kind[index] = node.surface.KIND
+                params[index] = node.surface.params()
+                if node.surface.KIND == USER:
+                    user[index] = node.surface
+                negative[index] = add(node.negative)
+                positive[index] = add(node.positive)
+            else:
+                if int(node) != node or node < 0:
+                    raise ValueError(f"leaves must be material ids >= 0; got {node!r}")
+                leaf.append(int(node))
+            return index
+
+        add(root)
+        return cls(kind, params, negative, positive, leaf, user)
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes (inner and leaves)."""
+        return len(self.kind)
+
+    @property
+    def height(self) -> int:
+        """Number of inner nodes on the longest root-to-leaf path."""
+        depth = np.zeros(self.n_nodes, np.int64)
+        for node in range(self.n_nodes):  # children always come after their parent
+            if self.leaf[node] < 0:
+                depth[self.negative[node]] = depth[self.positive[node]] = depth[node] + 1
+        return int(depth.max())
+
+    def locate(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """Material id of the leaf containing each point, and the smallest |d| met on the way.
+
+        Parameters
+        ----------
+        points : array_like, shape (N, 3)
+
+        Returns
+        -------
+        material_id : numpy.ndarray, shape (N,), int64
+        distance : numpy.ndarray, shape (N,)
+            ``min |F(x)|`` over the splitting surfaces on the point's path (the
+            distance to the nearest bounding plane for plane trees), which
+            drives gradual materials.
+        """
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            raise ValueError(f"points must have shape (N, 3); got {pts.shape}")
+        if self.user:
+            return self._locate_by_level(pts)
+        if len(pts) < 65536:
+            order = None
+        else:  # nearby points follow nearby paths: visit them together so the nodes stay cached
+            order = _morton_order(pts)
+            pts = pts[order]
+        if self._planes is not None:
+            material, distance = _locate_planes(pts, self._planes, self._children, self.leaf)
+        else:
+            material, distance = _locate(pts, self.kind, self.params, self.negative, self.positive, self.leaf)
+        if order is not None:
+            material[order], distance[order] = material.copy(), distance.copy()
+        return material, distance
+
+    def _locate_by_level(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Level-synchronous location: every surface evaluated once per level on all its points."""
+        node = np.zeros(len(pts), np.int64)
+        distance = np.full(len(pts), np.inf)
+        active = np.flatnonzero(self.leaf[node] < 0)
+        while active.size:
+            for current in np.unique(node[active]):
+                rows = active[node[active] == current]
+                if current in self.user:
+                    d = self.user[current].evaluate(pts[rows])
+                else:
+                    d = np.array([surface_value(self.kind[current], self.params[current], *p) for p in pts[rows]])
+                distance[rows] = np.minimum(distance[rows], np.abs(d))
+                node[rows] = np.where(d < 0.0, self.negative[current], self.positive[current])
+            active = active[self.leaf[node[active]] < 0]
+        return self.leaf[node], distance
+
+    def to_json(self, path: str | Path) -> Path:
+        """Save the tree to a small JSON file (built-in surfaces only)."""
+        from pverosion.io import atomic_path
+
+        if self.user:
+            raise TypeError("a tree with Python-callable surfaces cannot be saved")
+        data = {"format": "pverosion-bsp", "version": 1, "kind": self.kind.tolist(),
+                "params": self.params.tolist(), "negative": self.negative.tolist(),
+                "positive": self.positive.tolist(), "leaf": self.leaf.tolist()}
+        path = Path(path)
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps(data), encoding="utf-8")
+        return path
+
+    @classmethod
+    def from_json(cls, path: str | Path) -> BSPTree:
+        """Load a tree written by :meth:`to_json`."""
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+        if data.get("format") != "pverosion-bsp":
+            raise ValueError(f"{path} is not a pverosion BSP file")
+        return cls(data["kind"], data["params"], data["negative"], data["positive"], data["leaf"])
+
+
+def split(surface: ImplicitSurface, negative: int, positive: int) -> BSPTree:
+    """Division by one surface: material ``negative`` where F < 0, ``positive`` elsewhere."""
+    if isinstance(surface, dict):
+        surface = surface_from_dict(surface)
+    return BSPTree.from_nodes(BSPNode(surface, negative, positive))
+
+
+# -- automated build (Algorithm 1) ---------------------------------------------------------
+
+_MAX_POLY = 32
+
+
+@njit(cache=True, error_model="numpy")
+def _grow(arrays_f, arrays_i, capacity):
+    new_f = np.zeros((capacity, arrays_f.shape[1]))
+    new_f[: arrays_f.shape[0]] = arrays_f
+    new_i = np.full((capacity, arrays_i.shape[1]), -1, np.int64)
+    new_i[: arrays_i.shape[0]] = arrays_i
+    return new_f, new_i
+
+
+@njit(cache=True, error_model="numpy")
+def _clip(poly, n, normal, offset, keep_negative, out):
+    """Part of convex polygon ``poly[:n]`` on one side of a plane into ``out``; returns its size."""
+    m = 0
+    for a in range(n):
+        b = (a + 1) % n
+        da = normal[0] * poly[a, 0] + normal[1] * poly[a, 1] + normal[2] * poly[a, 2] + offset
+        db = normal[0] * poly[b, 0] + normal[1] * poly[b, 1] + normal[2] * poly[b, 2] + offset
+        if not keep_negative:
+            da, db = -da, -db
+        if da <= 0.0 and m < _MAX_POLY:
+            out[m] = poly[a]
+            m += 1
+        if (da < 0.0 < db or db < 0.0 < da) and m < _MAX_POLY:
+            t = da / (da - db)
+            out[m] = poly[a] + t * (poly[b] - poly[a])
+            m += 1
+    return m
+
+
+@njit(cache=True, error_model="numpy")
+def _build(tri, inside, outside, complete, eps):
+    n_tri = tri.shape[0]
+    capacity = 2 * n_tri + 16
+    plane = np.zeros((capacity, 4))  # normal, offset
+    links = np.full((capacity, 3), -1, np.int64)  # negative, positive, leaf material (-1 inner)
+    links[0, 2] = -2  # empty root
+    n_nodes = 1
+    inserted = 0
+    stack_poly = np.zeros((256, _MAX_POLY, 3))
+    stack_n = np.zeros(256, np.int64)
+    stack_node = np.zeros(256, np.int64)
+    poly = np.zeros((_MAX_POLY, 3))
+    piece = np.zeros((_MAX_POLY, 3))
+    for f in range(n_tri):
+        p0, p1, p2 = tri[f, 0], tri[f, 1], tri[f, 2]
+        normal = np.cross(p1 - p0, p2 - p0)
+        length = np.sqrt(normal @ normal)
+        if length == 0.0:
+            continue
+        normal /= length
+        offset = -(normal @ p0)
+        centre = (p0 + p1 + p2) / 3.0
+        stack_poly[0, :3] = tri[f]
+        stack_n[0] = 3
+        stack_node[0] = 0
+        top = 1
+        placed = False
+        while top > 0:
+            top -= 1
+            node = stack_node[top]
+            n = stack_n[top]
+            poly[:n] = stack_poly[top, :n]
+            while links[node, 2] == -1:  # inner node: which side(s)?
+                nrm = plane[node, :3]
+                off = plane[node, 3]
+                neg = 0
+                pos = 0
+                for k in range(n):
+                    d = nrm[0] * poly[k, 0] + nrm[1] * poly[k, 1] + nrm[2] * poly[k, 2] + off
+                    if d < -eps:
+                        neg += 1
+                    elif d > eps:
+                        pos += 1
+                if neg == 0 and pos == 0:
+                    node = -1  # lies in a plane already on its path: skipped
+                    break
+                if not complete:
+                    node = links[node, 0] if nrm @ centre + off < 0.0 else links[node, 1]  # S-BSP: the centre
+                elif pos == 0:
+                    node = links[node, 0]
+                elif neg == 0:
+                    node = links[node, 1]
+                else:  # C-BSP: clip, and send each piece down its own side
+                    if top + 2 > stack_n.shape[0]:
+                        grown = np.zeros((2 * stack_n.shape[0], _MAX_POLY, 3))
+                        grown[:top] = stack_poly[:top]
+                        stack_poly = grown
+                        stack_n = np.concatenate((stack_n, np.zeros_like(stack_n)))
+                        stack_node = np.concatenate((stack_node, np.zeros_like(stack_node)))
+                    for keep_negative in (True, False):
+                        m = _clip(poly, n, nrm, off, keep_negative, piece)
+                        if m >= 3:
+                            stack_poly[top, :m] = piece[:m]
+                            stack_n[top] = m
+                            stack_node[top] = links[node, 0] if keep_negative else links[node, 1]
+                            top += 1
+                    node = -1
+                    break
+            if node < 0:
+                continue
+            # a leaf: it becomes an inner node split by the face's plane
+            if n_nodes + 2 > capacity:
+                capacity *= 2
+                plane, links = _grow(plane, links, capacity)
+            plane[node, :3] = normal
+            plane[node, 3] = offset
+            links[node, 0] = n_nodes
+            links[node, 1] = n_nodes + 1
+            links[node, 2] = -1
+            links[n_nodes, 2] = inside[f]
+            links[n_nodes + 1, 2] = outside[f]
+            n_nodes += 2
+            placed = True
+        if placed:
+            inserted += 1
+    return plane[:n_nodes].copy(), links[:n_nodes].copy(), inserted
+
+
+def build_from_triangles(
+    triangles: np.ndarray,
+    inside: np.ndarray,
+    outside: np.ndarray,
+    *,
+    method: str = "complete",
+    seed: int = 0,
+) -> tuple[BSPTree, int]:
+    """Grow a plane BSP tree from oriented triangles (Algorithm 1).
+
+    Parameters
+    ----------
+    triangles : numpy.ndarray, shape (T, 3, 3)
+        Triangle corners, wound so the right-hand normal points to the
+        ``outside`` material.
+    inside, outside : numpy.ndarray, shape (T,), int
+        Material ids behind (negative side) and in front of each triangle.
+    method : {"complete", "simplified"}
+        C-BSP (clip straddling faces) or S-BSP (route by the centre).
+    seed : int
+        Seed of the Fisher–Yates insertion order; the same seed gives the same tree.
+
+    Returns
+    -------
+    tree : BSPTree
+    inserted : int
+        Faces that created at least one node (the others lay in planes already
+        on their path).
+    """
+    if method not in BSP_METHODS:
+        raise ValueError(f"method must be one of {BSP_METHODS}; got {method!r}")
+    tri = np.ascontiguousarray(triangles, dtype=np.float64)
+    if tri.ndim != 3 or tri.shape[1:] != (3, 3) or len(tri) == 0:
+        raise ValueError(f"triangles must have shape (T, 3, 3) with T > 0; got {tri.shape}")
+    order = np.random.default_rng(seed).permutation(len(tri))  # Fisher–Yates (Durstenfeld)
+    extent = float(np.ptp(tri.reshape(-1, 3), axis=0).max()) or 1.0
+    plane, links, inserted = _build(tri[order], np.asarray(inside, np.int64)[order],
+                                    np.asarray(outside, np.int64)[order], method == "complete", 1e-9 * extent)
+    links[links[:, 2] == -2, 2] = 0  # a tree that received no face: one leaf of material 0
+    params = np.zeros((len(plane), N_PARAMS))
+    params[:, :4] = plane
+    tree = BSPTree(np.full(len(plane), PLANE), params, links[:, 0], links[:, 1], links[:, 2])
+    return tree.preordered(), int(inserted)
