@@ -23,7 +23,14 @@ from pathlib import Path
 import numpy as np
 from numba import njit, prange
 
-from pverosion.kernels.surfaces import N_PARAMS, PLANE, USER, ImplicitSurface, surface_from_dict, surface_value
+from pverosion.kernels.surfaces import (
+    N_PARAMS,
+    PLANE,
+    USER,
+    ImplicitSurface,
+    surface_from_dict,
+    surface_value,
+)
 
 __all__ = ["BSP_METHODS", "BSPNode", "BSPStats", "BSPTree", "build_from_triangles"]
 

@@ -22,8 +22,8 @@ __all__ = [
     "ImplicitSurface",
     "Paraboloid",
     "Plane",
-    "SincSurface",
     "SinSurface",
+    "SincSurface",
     "Sphere",
     "UserSurface",
     "surface_from_dict",
@@ -83,6 +83,8 @@ class Plane(ImplicitSurface):
         length = np.linalg.norm(n)
         if length == 0:
             raise ValueError("normal must not be zero")
+        if abs(length - 1.0) < 1e-12:  # already unit: keep the bits (exact save/load round trip)
+            length = 1.0
         object.__setattr__(self, "normal", tuple((n / length).tolist()))
         object.__setattr__(self, "offset", float(self.offset) / length)
 
@@ -198,9 +200,12 @@ class Cylinder(ImplicitSurface):
     def __post_init__(self):
         object.__setattr__(self, "point", _vec(self.point, "point"))
         u = np.asarray(_vec(self.axis, "axis"))
-        if not np.linalg.norm(u) > 0:
+        length = np.linalg.norm(u)
+        if not length > 0:
             raise ValueError("axis must not be zero")
-        object.__setattr__(self, "axis", tuple((u / np.linalg.norm(u)).tolist()))
+        if abs(length - 1.0) < 1e-12:
+            length = 1.0
+        object.__setattr__(self, "axis", tuple((u / length).tolist()))
         object.__setattr__(self, "radius", _positive(self.radius, "radius"))
 
     def evaluate(self, points) -> np.ndarray:

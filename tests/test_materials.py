@@ -1,0 +1,175 @@
+import numpy as np
+import pytest
+from conftest import DATA
+
+from pverosion.kernels.bsp import BSPNode, BSPTree, build_from_triangles
+from pverosion.kernels.materials import (
+    BSPMaterials,
+    Gradual,
+    VertexMaterials,
+    VolumeMaterials,
+    bsp_from_volume,
+)
+from pverosion.kernels.surfaces import (
+    Cylinder,
+    Ellipsoid,
+    EllipticHyperboloid,
+    Paraboloid,
+    Plane,
+    SincSurface,
+    SinSurface,
+    Sphere,
+    UserSurface,
+    surface_from_dict,
+)
+
+SURFACES = [
+    Plane((1.0, 2.0, -0.5), 0.3),
+    Sphere((0.1, -0.2, 0.3), 0.7),
+    Ellipsoid((0.0, 0.1, 0.0), (0.9, 0.5, 0.7)),
+    Paraboloid((0.0, 0.0, -0.5), 0.8, 1.2),
+    EllipticHyperboloid((0.0, 0.0, 0.0), 0.4, 0.6, 0.8),
+    Cylinder((0.2, 0.0, 0.0), (1.0, 1.0, 0.0), 0.5),
+    SinSurface(0.1, 0.3, 3.0, 2.0),
+    SincSurface((0.1, -0.1), -0.2, 0.8, 0.4),
+]
+
+
+def _random_tree(rng, depth):
+    if depth == 0 or rng.random() < 0.15:
+        return int(rng.integers(0, 5))
+    surface = SURFACES[rng.integers(len(SURFACES))]
+    return BSPNode(surface, _random_tree(rng, depth - 1), _random_tree(rng, depth - 1))
+
+
+def _brute_force(node, point):
+    """Reference location: recursion over the NumPy evaluators."""
+    nearest = np.inf
+    while isinstance(node, BSPNode):
+        d = node.surface.evaluate(point[None])[0]
+        nearest = min(nearest, abs(d))
+        node = node.negative if d < 0 else node.positive
+    return node, nearest
+
+
+def test_surfaces_numba_and_numpy_agree_and_round_trip():
+    rng = np.random.default_rng(0)
+    points = rng.uniform(-1.5, 1.5, (2000, 3))
+    for surface in SURFACES:
+        tree = BSPTree.from_nodes(BSPNode(surface, 0, 1))
+        material, distance = tree.locate(points)
+        d = surface.evaluate(points)
+        assert np.array_equal(material, np.where(d < 0, 0, 1)), surface
+        assert np.allclose(distance, np.abs(d), rtol=1e-12, atol=1e-12)
+        assert surface_from_dict(surface.to_dict()) == surface
+    # a plane's value is the signed distance
+    plane = Plane((0.0, 0.0, 2.0), -1.0)
+    assert plane.evaluate(np.array([[0.0, 0.0, 3.0]]))[0] == pytest.approx(2.5)
+
+
+def test_random_trees_locate_like_brute_force_on_100k_points(tmp_path):
+    rng = np.random.default_rng(1)
+    points = rng.uniform(-1.5, 1.5, (100_000, 3))
+    for _ in range(3):
+        root = _random_tree(rng, 6)
+        if not isinstance(root, BSPNode):
+            continue
+        tree = BSPTree.from_nodes(root)
+        material, distance = tree.locate(points)
+        check = rng.choice(len(points), 3000, replace=False)
+        expected = np.array([_brute_force(root, points[i]) for i in check])
+        near = expected[:, 1] < 1e-9
+        assert np.array_equal(material[check][~near], expected[~near, 0].astype(int))
+        assert np.allclose(distance[check], expected[:, 1])
+        # whole-array agreement with the Python-callable (level by level) path
+        user_tree = BSPTree.from_nodes(BSPNode(UserSurface(lambda p: p[:, 0] - 10.0), root, 0))
+        assert np.array_equal(user_tree.locate(points)[0], material)
+        path = tree.to_json(tmp_path / "tree.json")
+        assert np.array_equal(BSPTree.from_json(path).locate(points)[0], material)
+
+
+def test_gradual_hardness_is_monotone_in_the_distance():
+    field = BSPMaterials.split(Plane((0.0, 0.0, 1.0), 0.0), 0, 1, [2.0, 4.0], gradual=Gradual(scale=0.5, floor=0.25))
+    z = np.linspace(0.0, 5.0, 200)
+    points = np.stack([np.zeros_like(z), np.zeros_like(z), z], axis=1)
+    sample = field.sample(points)
+    assert np.all(sample.material_id[1:] == 1)
+    assert np.all(np.diff(sample.hardness[1:]) <= 0)
+    assert np.allclose(sample.hardness[1:], 4.0 * (0.25 + 0.75 * np.exp(-z[1:] / 0.5)))
+    assert sample.hardness[-1] == pytest.approx(1.0, rel=0.01)  # the floor, far away
+    below = field.sample(-points[1:])
+    assert np.all(below.material_id == 0) and np.all(np.diff(below.hardness) <= 0)
+    assert np.allclose(field.erodibility(points), 1.0 / sample.hardness)
+
+
+def test_vertex_and_volume_fields():
+    vertex = VertexMaterials([0, 2, 1, 2], [1.0, 2.0, 3.0])
+    assert np.array_equal(vertex.sample(np.zeros((2, 3)), ids=[1, 2]).hardness, [3.0, 2.0])
+    with pytest.raises(ValueError, match="pass ids="):
+        vertex.sample(np.zeros((3, 3)))
+    ids = np.zeros((4, 3, 2), np.int64)
+    ids[2:] = 1
+    volume = VolumeMaterials(ids, [1.0, 3.0], spacing=(1.0, 1.0, 1.0))
+    s = volume.sample([[0.4, 1.0, 0.0], [1.5, 1.0, 0.0], [2.6, 1.0, 1.0], [9.0, 9.0, 9.0]])
+    assert np.array_equal(s.material_id, [0, 1, 1, 1])  # nearest; outside clamps to the boundary
+    assert s.hardness[0] == 1.0 and s.hardness[1] == pytest.approx(2.0) and s.hardness[2] == 3.0
+    nearest = VolumeMaterials(ids, [1.0, 3.0], interpolation="nearest").sample([[1.4, 1.0, 0.0]])
+    assert nearest.hardness[0] == 1.0
+
+
+def test_build_from_triangles_reproduces_a_cube():
+    import pyvista as pv
+
+    cube = pv.Cube(center=(0.0, 0.0, 0.0), x_length=2.0, y_length=2.0, z_length=2.0).triangulate()
+    tri = np.asarray(cube.points)[cube.regular_faces]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    outward = np.einsum("ij,ij->i", normal, tri.mean(axis=1)) > 0
+    tri[~outward] = tri[~outward][:, ::-1]
+    points = np.random.default_rng(2).uniform(-2, 2, (20_000, 3))
+    inside = np.all(np.abs(points) < 1.0, axis=1)
+    for method in ("complete", "simplified"):
+        tree, inserted = build_from_triangles(tri, np.ones(len(tri), int), np.zeros(len(tri), int), method=method)
+        assert inserted == 6  # two coplanar triangles per side: the second lies in the first's plane
+        assert np.array_equal(tree.locate(points)[0] == 1, inside)
+
+
+@pytest.fixture(scope="module")
+def head():
+    raw = DATA / "HeadMRVolume.raw"
+    if not raw.exists():
+        pytest.skip(f"real data not found at {raw}")
+    return np.fromfile(raw, dtype=np.uint8).reshape(42, 62, 48).transpose(2, 1, 0)
+
+
+def test_head_volume_bsp_agrees_with_thresholded_voxels(head):
+    thresholds = (40, 100, 160)
+    reference = (head[..., None] > np.array(thresholds)).sum(axis=-1).ravel()
+    centres = np.stack(np.meshgrid(*[np.arange(n) for n in head.shape], indexing="ij"), -1).reshape(-1, 3) * 4.0
+    agreement = {}
+    for method in ("complete", "simplified"):
+        field = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method=method, seed=3)
+        agreement[method] = np.mean(field.sample(centres).material_id == reference)
+        assert field.stats.extracted_faces >= field.stats.inserted_faces > 0
+        assert field.stats.tree_bytes == 24 * field.stats.nodes
+    assert agreement["complete"] >= 0.99
+    assert agreement["simplified"] <= agreement["complete"]
+    again = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="complete", seed=3)
+    first = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="complete", seed=3)
+    assert np.array_equal(again.tree.params, first.tree.params) and np.array_equal(again.tree.leaf, first.tree.leaf)
+
+
+def test_bad_input_is_named():
+    with pytest.raises(ValueError, match="radius must be > 0"):
+        Sphere((0, 0, 0), -1.0)
+    with pytest.raises(ValueError, match="unknown surface type"):
+        surface_from_dict({"type": "Torus"})
+    with pytest.raises(ValueError, match="hardness needs a value"):
+        BSPMaterials.split(Plane(), 0, 3, [1.0, 2.0])
+    with pytest.raises(ValueError, match="strictly inside the value range"):
+        bsp_from_volume(np.arange(27.0).reshape(3, 3, 3), [100.0])
+    with pytest.raises(ValueError, match="method must be one of"):
+        bsp_from_volume(np.arange(27.0).reshape(3, 3, 3), [10.0], method="fast")
+    with pytest.raises(ValueError, match="points must have shape"):
+        BSPMaterials.split(Plane(), 0, 1, [1.0, 2.0]).sample(np.zeros(3))
+    with pytest.raises(TypeError, match="cannot be saved"):
+        BSPTree.from_nodes(BSPNode(UserSurface(lambda p: p[:, 0]), 0, 1)).to_json("x.json")
