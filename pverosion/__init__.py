@@ -6,7 +6,7 @@ a PyVista accessor (``mesh.erosion.curvature()``), the ``pverosion`` command lin
 and ParaView plugins.
 """
 
-from pverosion.api import curvature, weather
+from pverosion.api import curvature, materials_from_volume, sample_materials, weather
 from pverosion.kernels.validation import InvalidMeshError
 from pverosion.plotting import CURVATURE_CMAP, curvature_cmap
 
@@ -14,4 +14,13 @@ __version__ = "0.1.0"
 
 curvature_cmap()  # register the colour map of the papers under CURVATURE_CMAP
 
-__all__ = ["CURVATURE_CMAP", "InvalidMeshError", "__version__", "curvature", "curvature_cmap", "weather"]
+__all__ = [
+    "CURVATURE_CMAP",
+    "InvalidMeshError",
+    "__version__",
+    "curvature",
+    "curvature_cmap",
+    "materials_from_volume",
+    "sample_materials",
+    "weather",
+]

@@ -25,3 +25,7 @@ class ErosionAccessor:
     def weather(self, **options) -> pv.PolyData:
         """Curvature-driven weathering; see :func:`pverosion.weather` for the options."""
         return api.weather(self._dataset, **options)
+
+    def materials(self, thresholds, **options):
+        """BSP material field built from this image volume; see :func:`pverosion.materials_from_volume`."""
+        return api.materials_from_volume(self._dataset, thresholds, **options)

@@ -2,14 +2,23 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pyvista as pv
 
 from pverosion._frontend import apply_filter
 from pverosion.filters.curvature import Curvature
+from pverosion.filters.materials import MaterialSampler
 from pverosion.filters.weathering import Weathering
+from pverosion.kernels.bsp import BSPTree
+from pverosion.kernels.materials import (
+    BSPMaterials,
+    Gradual,
+    MaterialField,
+    bsp_from_volume,
+)
 from pverosion.kernels.weathering import Erodibility
 
-__all__ = ["curvature", "weather"]
+__all__ = ["curvature", "materials_from_volume", "sample_materials", "weather"]
 
 
 def curvature(mesh: pv.PolyData, *, orientation: str = "outward", normalization: str = "none") -> pv.PolyData:
@@ -115,3 +124,98 @@ def weather(
     if isinstance(erodibility, str):
         return apply_filter(Weathering, mesh, erodibility_array=erodibility, **options)
     return apply_filter(Weathering, mesh, erodibility=erodibility, **options)
+
+
+def materials_from_volume(
+    volume,
+    thresholds,
+    *,
+    array: str | None = None,
+    method: str = "complete",
+    seed: int = 0,
+    hardness=None,
+    gradual_scale: float = 0.0,
+) -> BSPMaterials:
+    """A BSP material field built from volume data (thesis §11.5).
+
+    Parameters
+    ----------
+    volume : pyvista.ImageData or numpy.ndarray of shape (nx, ny, nz)
+        The scalar volume (an image's ``array`` or active scalars).
+    thresholds : sequence of float
+        Material boundaries; material k is where the value exceeds k of them.
+    array : str, optional
+        Point array of an image volume.
+    method : {"complete", "simplified"}, default: "complete"
+        C-BSP (exact partition by clipping) or S-BSP (faster, coarser).
+    seed : int, default: 0
+        Face insertion order; the same seed gives the same tree.
+    hardness : sequence of float, optional
+        Hardness of materials 0..m; default 1, 2, ..., m + 1.
+    gradual_scale : float, default: 0
+        When > 0, materials soften away from the boundaries over this distance.
+
+    Returns
+    -------
+    BSPMaterials
+        ``.sample(points)``, ``.erodibility(points)``, ``.tree`` (save with
+        ``.tree.to_json(path)``) and ``.stats``.
+
+    Examples
+    --------
+    >>> import numpy as np, pverosion
+    >>> x, y, z = np.mgrid[-1:1:24j, -1:1:24j, -1:1:24j]
+    >>> field = pverosion.materials_from_volume(-np.sqrt(x**2 + y**2 + z**2), [-0.5])
+    >>> field.sample([[11.5, 11.5, 11.5], [0.0, 0.0, 0.0]]).material_id.tolist()
+    [1, 0]
+    """
+    if isinstance(volume, pv.ImageData):
+        name = array or volume.active_scalars_name
+        if name is None or name not in volume.point_data:
+            raise ValueError(f"image has no point array {array!r}" if array else "image has no active scalars")
+        nx, ny, nz = volume.dimensions
+        values = np.asarray(volume.point_data[name]).reshape(nz, ny, nx).transpose(2, 1, 0)
+        origin, spacing = volume.origin, volume.spacing
+    else:
+        values, origin, spacing = np.asarray(volume), (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)
+    return bsp_from_volume(values, thresholds, origin=origin, spacing=spacing, method=method, seed=seed,
+                           hardness=hardness, gradual=Gradual(gradual_scale) if gradual_scale > 0 else None)
+
+
+def sample_materials(
+    field: MaterialField | str,
+    *,
+    dimensions=(64, 64, 64),
+    bounds=(-1.0, 1.0, -1.0, 1.0, -1.0, 1.0),
+    association: str = "point",
+) -> pv.ImageData:
+    """Sample a material field on a regular grid, for slices (Figures 11.11–11.13, 11.18).
+
+    Parameters
+    ----------
+    field : MaterialField or str
+        A field, or the path of a BSP tree JSON file.
+    dimensions : tuple of int, default: (64, 64, 64)
+        Grid points along x, y, z.
+    bounds : tuple of float, default: (-1, 1, -1, 1, -1, 1)
+        xmin, xmax, ymin, ymax, zmin, zmax.
+    association : {"point", "cell"}, default: "point"
+        Sample at the points or at the cell centres.
+
+    Returns
+    -------
+    pyvista.ImageData
+        With ``material_id`` and ``hardness`` arrays.
+    """
+    dims = np.asarray(dimensions, dtype=int)
+    box = np.asarray(bounds, dtype=float)
+    if dims.shape != (3,) or np.any(dims < 1):
+        raise ValueError(f"dimensions must be 3 positive integers; got {dimensions!r}")
+    if box.shape != (6,) or np.any(box[1::2] < box[::2]):
+        raise ValueError(f"bounds must be (xmin, xmax, ymin, ymax, zmin, zmax) with min <= max; got {bounds!r}")
+    spacing = np.where(dims > 1, (box[1::2] - box[::2]) / np.maximum(dims - 1, 1), 1.0)
+    grid = pv.ImageData(dimensions=dims.tolist(), origin=box[::2].tolist(), spacing=spacing.tolist())
+    if isinstance(field, str):
+        tree = BSPTree.from_json(field)
+        field = BSPMaterials(tree, np.arange(1.0, tree.leaf.max() + 2.0))
+    return pv.wrap(MaterialSampler(field=field, association=association).run(grid))

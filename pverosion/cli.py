@@ -42,9 +42,15 @@ def build_parser() -> argparse.ArgumentParser:
     for filter_cls in ALL_FILTERS:
         cmd = sub.add_parser(_command_name(filter_cls), help=filter_cls.LABEL, description=filter_cls.__doc__,
                              formatter_class=argparse.RawDescriptionHelpFormatter)
-        cmd.add_argument("input", type=Path, help="input surface (any format PyVista reads: PLY, STL, OBJ, VTP, VTK)")
-        cmd.add_argument("-o", "--output", type=Path, required=True, help="output file (.vtp recommended)")
-        cmd.add_argument("--screenshot", type=Path, help="also render the result off-screen to this PNG")
+        if filter_cls.INPUT_TYPE == "vtkImageData":
+            cmd.add_argument("input", type=Path, help="input volume (any image format PyVista reads: VTI, MHD, ...)")
+            cmd.add_argument("-o", "--output", type=Path, required=True, help="output image (.vti)")
+            cmd.add_argument("--screenshot", type=Path, help="also plot the three middle slices to this PNG")
+        else:
+            cmd.add_argument("input", type=Path,
+                             help="input surface (any format PyVista reads: PLY, STL, OBJ, VTP, VTK)")
+            cmd.add_argument("-o", "--output", type=Path, required=True, help="output file (.vtp recommended)")
+            cmd.add_argument("--screenshot", type=Path, help="also render the result off-screen to this PNG")
         _add_filter_options(cmd, filter_cls)
         if filter_cls.TIME_DEPENDENT:
             cmd.add_argument("--save-every", type=int, metavar="K",
@@ -98,11 +104,11 @@ def _run_time_stage(filter_cls: type[ErosionFilter], mesh, options: dict, args: 
 
 def _run_stage(args: argparse.Namespace) -> None:
     from pverosion._frontend import apply_filter
-    from pverosion.io import read_mesh, write_atomic
+    from pverosion.io import read_image, read_mesh, write_atomic
 
     filter_cls = args.filter_cls
     options = {p.name: getattr(args, p.name) for p in filter_cls.PARAMS}
-    mesh = read_mesh(args.input)
+    mesh = read_image(args.input) if filter_cls.INPUT_TYPE == "vtkImageData" else read_mesh(args.input)
     start = time.perf_counter()
     if filter_cls.TIME_DEPENDENT:
         result = _run_time_stage(filter_cls, mesh, options, args)
@@ -112,9 +118,12 @@ def _run_stage(args: argparse.Namespace) -> None:
     write_atomic(result, args.output)
     print(f"{_command_name(filter_cls)}: {mesh.n_points} points, {mesh.n_cells} cells in {elapsed:.3f} s -> {args.output}")
     if args.screenshot:
-        from pverosion.plotting import render_scalars
+        from pverosion.plotting import plot_slices, render_scalars
 
-        render_scalars(result, args.screenshot)
+        if filter_cls.OUTPUT_TYPE == "vtkImageData":
+            plot_slices(result, args.screenshot)
+        else:
+            render_scalars(result, args.screenshot)
         print(f"screenshot -> {args.screenshot}")
 
 

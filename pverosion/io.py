@@ -9,7 +9,7 @@ from xml.sax.saxutils import quoteattr
 
 import pyvista as pv
 
-__all__ = ["EXTENSIONS", "TimeSeriesWriter", "atomic_path", "read_mesh", "write_atomic"]
+__all__ = ["EXTENSIONS", "TimeSeriesWriter", "atomic_path", "read_image", "read_mesh", "write_atomic"]
 
 EXTENSIONS = {
     "PolyData": ".vtp",
@@ -20,6 +20,25 @@ EXTENSIONS = {
     "MultiBlock": ".vtm",
 }
 """XML VTK extension used for each PyVista dataset type."""
+
+
+def read_image(path: str | os.PathLike) -> pv.ImageData:
+    """Read a volume on a regular grid (VTI, MHD/MHA, NRRD, ... anything PyVista reads as ImageData).
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        If the file does not hold an image.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no such file: {path}")
+    data = pv.read(path)
+    if not isinstance(data, pv.ImageData):
+        raise ValueError(f"{path} holds a {type(data).__name__}, not an image on a regular grid")
+    return data
 
 
 def read_mesh(path: str | os.PathLike) -> pv.PolyData:

@@ -11,7 +11,7 @@ from matplotlib.colors import LinearSegmentedColormap
 
 from pverosion.io import atomic_path
 
-__all__ = ["CURVATURE_CMAP", "curvature_cmap", "plot_statistics", "render_scalars", "render_strip"]
+__all__ = ["CURVATURE_CMAP", "curvature_cmap", "plot_slices", "plot_statistics", "render_scalars", "render_strip"]
 
 CURVATURE_CMAP = "pverosion_curvature"
 """Name of the registered blue-green-red colour map (Skorkovská 2019, Figure 2)."""
@@ -161,6 +161,49 @@ def plot_statistics(series: dict[str, dict[str, np.ndarray]], path: str | os.Pat
         ax.set_title(title)
         ax.set_xlabel("step")
     axes[0, 0].legend()
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=100, format="png")
+    plt.close(fig)
+    return path
+
+
+def plot_slices(image, path: str | os.PathLike, *, scalars: str = "hardness", title: str = "") -> Path:
+    """The three middle slices (x, y, z) of an image's point array as one PNG (Figures 11.11–11.18).
+
+    Lighter is softer for ``hardness`` (the thesis' brown scale); other arrays
+    use a qualitative map.
+
+    Parameters
+    ----------
+    image : pyvista.ImageData
+    path : str or path-like
+        PNG file to write (atomically).
+    scalars : str, default: "hardness"
+    title : str, optional
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    nx, ny, nz = image.dimensions
+    values = np.asarray(image.point_data[scalars]).reshape(nz, ny, nx).transpose(2, 1, 0)
+    cmap = "copper" if scalars == "hardness" else "tab10"
+    fig, axes = plt.subplots(1, 3, figsize=(12, 4), constrained_layout=True)
+    cuts = (("x", values[nx // 2, :, :].T, "y", "z"), ("y", values[:, ny // 2, :].T, "x", "z"),
+            ("z", values[:, :, nz // 2].T, "x", "y"))
+    vmin, vmax = float(values.min()), float(values.max())
+    for ax, (axis, cut, horizontal, vertical) in zip(axes, cuts):
+        shown = ax.imshow(cut, origin="lower", cmap=cmap, vmin=vmin, vmax=vmax, interpolation="nearest")
+        ax.set_title(f"{axis} = middle")
+        ax.set_xlabel(horizontal)
+        ax.set_ylabel(vertical)
+    fig.colorbar(shown, ax=axes, shrink=0.8, label=scalars)
+    if title:
+        fig.suptitle(title)
     path = Path(path)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=100, format="png")

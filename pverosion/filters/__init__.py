@@ -6,8 +6,17 @@ generated from it, so a new stage is exposed by adding its class here.
 
 from pverosion.filters.base import ErosionFilter, Param
 from pverosion.filters.curvature import Curvature
+from pverosion.filters.materials import MaterialSampler, MaterialsFromVolume
 from pverosion.filters.weathering import Weathering
 
-ALL_FILTERS: tuple[type[ErosionFilter], ...] = (Curvature, Weathering)
+ALL_FILTERS: tuple[type[ErosionFilter], ...] = (Curvature, Weathering, MaterialsFromVolume, MaterialSampler)
 
-__all__ = ["ALL_FILTERS", "Curvature", "ErosionFilter", "Param", "Weathering"]
+__all__ = [
+    "ALL_FILTERS",
+    "Curvature",
+    "ErosionFilter",
+    "MaterialSampler",
+    "MaterialsFromVolume",
+    "Param",
+    "Weathering",
+]
