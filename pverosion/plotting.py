@@ -171,7 +171,7 @@ def plot_statistics(series: dict[str, dict[str, np.ndarray]], path: str | os.Pat
 def plot_slices(image, path: str | os.PathLike, *, scalars: str = "hardness", title: str = "") -> Path:
     """The three middle slices (x, y, z) of an image's point array as one PNG (Figures 11.11–11.18).
 
-    Lighter is softer for ``hardness`` (the thesis' brown scale); other arrays
+    Dark is hard and light is soft for ``hardness`` (the thesis' brown scale); other arrays
     use a qualitative map.
 
     Parameters
@@ -191,7 +191,7 @@ def plot_slices(image, path: str | os.PathLike, *, scalars: str = "hardness", ti
 
     nx, ny, nz = image.dimensions
     values = np.asarray(image.point_data[scalars]).reshape(nz, ny, nx).transpose(2, 1, 0)
-    cmap = "copper" if scalars == "hardness" else "tab10"
+    cmap = "copper_r" if scalars == "hardness" else "tab10"  # dark is hard, light is soft
     fig, axes = plt.subplots(1, 3, figsize=(12, 4), constrained_layout=True)
     cuts = (("x", values[nx // 2, :, :].T, "y", "z"), ("y", values[:, ny // 2, :].T, "x", "z"),
             ("z", values[:, :, nz // 2].T, "x", "y"))

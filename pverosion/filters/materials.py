@@ -87,7 +87,7 @@ class MaterialsFromVolume(ErosionFilter):
         super().__init__(**options)
         self.field: BSPMaterials | None = None
 
-    def _values(self, image) -> np.ndarray:
+    def _volume(self, image) -> np.ndarray:
         name = self.get_option("array")
         pd = image.GetPointData()
         arr = pd.GetArray(name) if name else pd.GetScalars()
@@ -105,7 +105,7 @@ class MaterialsFromVolume(ErosionFilter):
         thresholds = parse_numbers(self.get_option("thresholds"), "thresholds")
         hardness = parse_numbers(self.get_option("hardness"), "hardness") if self.get_option("hardness") else None
         scale = self.get_option("gradual_scale")
-        values = self._values(inp)
+        values = self._volume(inp)
         field = bsp_from_volume(values, thresholds, origin=inp.GetOrigin(), spacing=inp.GetSpacing(),
                                 method=self.get_option("method"), seed=self.get_option("seed"), hardness=hardness,
                                 gradual=Gradual(scale) if scale > 0 else None)
