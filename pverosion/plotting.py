@@ -91,6 +91,7 @@ def render_strip(
     scalars: str = "mean_curvature",
     panel_size: tuple[int, int] = (360, 360),
     percentile: float = 98.0,
+    cmap: str | None = None,
 ) -> Path:
     """Render a grid of meshes (one row per list) with the curvature colour map to one PNG.
 
@@ -109,6 +110,9 @@ def render_strip(
     scalars : str, default: "mean_curvature"
     panel_size : tuple of int, default: (360, 360)
     percentile : float, default: 98.0
+    cmap : str, optional
+        Another colour map (e.g. ``"copper_r"`` for hardness, hard is dark),
+        spanning each panel's data range instead of the curvature coding.
 
     Returns
     -------
@@ -121,9 +125,11 @@ def render_strip(
     for i, row in enumerate(rows):
         for j, mesh in enumerate(row):
             plotter.subplot(i, j)
-            plotter.add_mesh(mesh, scalars=scalars, cmap=curvature_cmap(),
-                             clim=_symmetric_limits(mesh[scalars], percentile), smooth_shading=True,
-                             show_scalar_bar=False)
+            if cmap is None:
+                colours = {"cmap": curvature_cmap(), "clim": _symmetric_limits(mesh[scalars], percentile)}
+            else:
+                colours = {"cmap": cmap}
+            plotter.add_mesh(mesh, scalars=scalars, smooth_shading=True, show_scalar_bar=False, **colours)
             if labels is not None:
                 plotter.add_text(labels[i][j], font_size=10, position="upper_left")
             plotter.view_isometric()

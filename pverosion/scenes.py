@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pyvista as pv
 
 from pverosion.filters.weathering import weathering_output
@@ -17,7 +18,14 @@ from pverosion.io import TimeSeriesWriter
 from pverosion.kernels.weathering import WeatheringSolver
 from pverosion.plotting import plot_statistics, render_strip
 
-__all__ = ["WeatheringRun", "cube_to_sphere", "power_modifier", "weathering_checkpoints"]
+__all__ = [
+    "WeatheringRun",
+    "cube_to_sphere",
+    "hills_cube",
+    "power_modifier",
+    "sixteen_cell_block",
+    "weathering_checkpoints",
+]
 
 
 @dataclass(frozen=True)
@@ -102,3 +110,65 @@ def power_modifier(mesh: pv.PolyData, out_dir: Path, *, powers=(1.0, 2.0, 3.0),
                  labels=[[f"n = {r.label[4:]}, step {s}" for s in r.steps] for r in runs])
     plot_statistics({r.label: r.statistics for r in runs}, out_dir / "power_modifier_statistics.png")
     return runs
+
+
+def sixteen_cell_block(*, resolution: int = 16, seed: int = 0, hardness_range=(1.0, 8.0)):
+    """Thesis Figure 11.10b: a block split into 16 vertical cells (4 x 4) of random hardness.
+
+    Returns
+    -------
+    block : pyvista.PolyData
+        A 2 x 2 x 1 box (``load_cube`` scaled), grid cells ``resolution`` per unit.
+    field : BSPMaterials
+        BSP tree of 3 + 3 axis planes (x and y at -0.5, 0, 0.5) with one material
+        per cell, hardness drawn from ``hardness_range`` with ``seed``.
+    cell_of : callable
+        ``cell_of(points) -> (N,)`` cell index 0..15 of points.
+    """
+    from pverosion.examples import load_cube
+    from pverosion.kernels.bsp import BSPNode, BSPTree
+    from pverosion.kernels.materials import BSPMaterials
+    from pverosion.kernels.surfaces import Plane
+
+    block = load_cube(resolution=resolution, size=2.0)
+    block.points[:, 2] *= 0.5
+    cuts = (-0.5, 0.0, 0.5)
+
+    def split(axis: int, lo: int, hi: int, inner):
+        """Balanced subtree over cuts[lo:hi] along ``axis``; ``inner(slot)`` builds each slab."""
+        if lo == hi:
+            return inner(lo)
+        mid = (lo + hi) // 2
+        normal = [0.0, 0.0, 0.0]
+        normal[axis] = 1.0
+        return BSPNode(Plane(tuple(normal), -cuts[mid]), split(axis, lo, mid, inner), split(axis, mid + 1, hi, inner))
+
+    tree = BSPTree.from_nodes(split(0, 0, 3, lambda i: split(1, 0, 3, lambda j: 4 * i + j)))
+    rng = np.random.default_rng(seed)
+    field = BSPMaterials(tree, rng.uniform(*hardness_range, 16))
+
+    def cell_of(points):
+        p = np.asarray(points)
+        return 4 * np.searchsorted(cuts, p[:, 0]) + np.searchsorted(cuts, p[:, 1])
+
+    return block, field, cell_of
+
+
+def hills_cube(*, resolution: int = 16):
+    """Thesis Figure 11.14: a cube of layered material, hard bedrock below sinc-shaped soft hills.
+
+    Returns
+    -------
+    cube : pyvista.PolyData
+    field : BSPMaterials
+        Bedrock (hardness 8) below z = -0.4, hills (hardness 4) under a sinc
+        surface, soft cover (hardness 1) above, with a gradual falloff.
+    """
+    from pverosion.examples import load_cube
+    from pverosion.kernels.bsp import BSPNode, BSPTree
+    from pverosion.kernels.materials import BSPMaterials, Gradual
+    from pverosion.kernels.surfaces import Plane, SincSurface
+
+    hills = SincSurface(centre=(0.0, 0.0), height=-0.1, amplitude=0.7, width=0.6)
+    tree = BSPTree.from_nodes(BSPNode(Plane((0.0, 0.0, 1.0), 0.4), 0, BSPNode(hills, 1, 2)))
+    return load_cube(resolution=resolution), BSPMaterials(tree, [8.0, 4.0, 1.0], gradual=Gradual(0.3, floor=0.5))

@@ -219,7 +219,7 @@ class Cylinder(ImplicitSurface):
 
 @dataclass(frozen=True)
 class SinSurface(ImplicitSurface):
-    """Corrugated height surface: ``d = z - (height + amplitude sin(kx x) sin(ky y))``."""
+    """Corrugated height surface: ``d = z - (height + amplitude sin(kx x) cos(ky y))``."""
 
     height: float = 0.0
     amplitude: float = 1.0
@@ -229,7 +229,7 @@ class SinSurface(ImplicitSurface):
 
     def evaluate(self, points) -> np.ndarray:
         p = np.asarray(points, dtype=np.float64)
-        return p[:, 2] - (self.height + self.amplitude * np.sin(self.kx * p[:, 0]) * np.sin(self.ky * p[:, 1]))
+        return p[:, 2] - (self.height + self.amplitude * np.sin(self.kx * p[:, 0]) * np.cos(self.ky * p[:, 1]))
 
     def params(self) -> np.ndarray:
         return np.array([self.height, self.amplitude, self.kx, self.ky, 0, 0, 0, 0], dtype=np.float64)
@@ -318,7 +318,7 @@ def surface_value(kind, p, x, y, z):
         t = qx * p[3] + qy * p[4] + qz * p[5]
         return np.sqrt((qx - t * p[3]) ** 2 + (qy - t * p[4]) ** 2 + (qz - t * p[5]) ** 2) - p[6]
     if kind == SIN:
-        return z - (p[0] + p[1] * np.sin(p[2] * x) * np.sin(p[3] * y))
+        return z - (p[0] + p[1] * np.sin(p[2] * x) * np.cos(p[3] * y))
     if kind == SINC:
         t = np.sqrt((x - p[0]) ** 2 + (y - p[1]) ** 2) / p[4]
         s = 1.0 if t == 0.0 else np.sin(np.pi * t) / (np.pi * t)
