@@ -1,0 +1,88 @@
+import numpy as np
+import pytest
+import pyvista as pv
+
+import pverosion
+from pverosion.cli import main
+from pverosion.filters import MaterialSampler, MaterialsFromVolume
+from pverosion.kernels.materials import BSPMaterials
+from pverosion.kernels.surfaces import Sphere
+from pverosion.kernels.weathering import WeatheringSolver
+from pverosion.scenes import sixteen_cell_block
+
+
+def _ball_image(n=20):
+    axis = np.linspace(-1.0, 1.0, n)
+    x, y, z = np.meshgrid(axis, axis, axis, indexing="ij")
+    image = pv.ImageData(dimensions=(n, n, n), origin=(-1.0, -1.0, -1.0), spacing=(2 / (n - 1),) * 3)
+    image["density"] = (1.0 - np.sqrt(x**2 + y**2 + z**2)).transpose(2, 1, 0).ravel()  # x fastest
+    return image
+
+
+def test_filter_builds_from_an_image_and_reports_agreement(tmp_path):
+    image = _ball_image()
+    out = pv.wrap(MaterialsFromVolume(thresholds="0.2, 0.6", tree_file=str(tmp_path / "t.json")).run(image))
+    assert out.field_data["agreement"][0] >= 0.99
+    centre = out.find_closest_point((0.0, 0.0, 0.0))
+    corner = out.find_closest_point((1.0, 1.0, 1.0))
+    assert out["material_id"][centre] == 2 and out["material_id"][corner] == 0
+    assert np.array_equal(out["hardness"], out["material_id"] + 1.0)
+    resampled = pverosion.sample_materials(str(tmp_path / "t.json"), dimensions=(20, 20, 20), bounds=image.bounds)
+    assert np.array_equal(resampled["material_id"], out["material_id"])
+    with pytest.raises(ValueError, match="thresholds are required"):
+        MaterialsFromVolume().run(image)
+    with pytest.raises(ValueError, match="thresholds must be numbers"):
+        MaterialsFromVolume(thresholds="low, high").run(image)
+
+
+def test_sampler_points_and_cells_and_accessor():
+    field = BSPMaterials.split(Sphere((0.0, 0.0, 0.0), 0.5), 0, 1, [3.0, 1.0])
+    points = pverosion.sample_materials(field, dimensions=(11, 11, 11))
+    inside = np.linalg.norm(points.points, axis=1) < 0.5
+    assert np.array_equal(points["material_id"] == 0, inside)
+    grid = pv.ImageData(dimensions=(5, 5, 5), origin=(-1, -1, -1), spacing=(0.5, 0.5, 0.5))
+    cells = pv.wrap(MaterialSampler(field=field, association="cell").run(grid))
+    centres = cells.cell_centers().points
+    assert np.array_equal(cells.cell_data["hardness"], np.where(np.linalg.norm(centres, axis=1) < 0.5, 3.0, 1.0))
+    assert _ball_image().erosion.materials([0.5]).n_materials == 2
+    with pytest.raises(ValueError, match="no material field"):
+        MaterialSampler().run(grid)
+    with pytest.raises(ValueError, match="dimensions must be"):
+        pverosion.sample_materials(field, dimensions=(0, 4, 4))
+
+
+def test_cli_materials_writes_vti_tree_and_slices(tmp_path, capsys):
+    _ball_image().save(tmp_path / "ball.vti")
+    out = tmp_path / "m.vti"
+    args = ["materials", str(tmp_path / "ball.vti"), "-o", str(out), "--thresholds", "0.2,0.6",
+            "--method", "simplified", "--tree-file", str(tmp_path / "tree.json"), "--screenshot", str(tmp_path / "s.png")]
+    assert main(args) == 0
+    assert pv.read(out).field_data["bsp_method"][0] == "simplified"
+    assert (tmp_path / "tree.json").exists() and (tmp_path / "s.png").stat().st_size > 5_000
+    assert main(["materials", str(tmp_path / "ball.vti"), "-o", str(out)]) == 2
+    assert "thresholds are required" in capsys.readouterr().err
+
+
+def test_weathering_follows_the_hardness_of_the_16_cells():
+    block, field, cell_of = sixteen_cell_block(seed=0)
+
+    def column_volumes(points, faces):
+        # divergence theorem with F = (0, 0, z): vertical cell walls add nothing
+        tri = points[faces]
+        area_normal = 0.5 * np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        centre = tri.mean(axis=1)
+        return np.bincount(cell_of(centre), weights=centre[:, 2] * area_normal[:, 2], minlength=16)
+
+    solver = WeatheringSolver(block.points, block.regular_faces, erodibility=field)
+    before = column_volumes(solver.points, solver.faces)
+    solver.run(100)
+    loss = before - column_volumes(solver.points, solver.faces)
+    i, j = np.divmod(np.arange(16), 4)
+    corner = np.isin(i, (0, 3)) & np.isin(j, (0, 3))
+    edge = (np.isin(i, (0, 3)) | np.isin(j, (0, 3))) & ~corner
+    for group in (corner, edge):  # cells of the same shape: the softer loses more
+        cells = np.flatnonzero(group)
+        by_hardness = cells[np.argsort(field.hardness[cells])]
+        assert loss[by_hardness[0]] > 2.0 * loss[by_hardness[-1]]
+        half = len(cells) // 2
+        assert loss[by_hardness[:half]].mean() > 1.5 * loss[by_hardness[half:]].mean()
