@@ -42,14 +42,16 @@ def _random_tree(rng, depth):
     return BSPNode(surface, _random_tree(rng, depth - 1), _random_tree(rng, depth - 1))
 
 
-def _brute_force(node, point):
-    """Reference location: recursion over the NumPy evaluators."""
-    nearest = np.inf
-    while isinstance(node, BSPNode):
-        d = node.surface.evaluate(point[None])[0]
-        nearest = min(nearest, abs(d))
-        node = node.negative if d < 0 else node.positive
-    return node, nearest
+def _brute_force(node, points, rows, material, nearest, margin):
+    """Reference location: recursive partition with the NumPy evaluators of each surface."""
+    if not isinstance(node, BSPNode):
+        material[rows] = node
+        return
+    d = node.surface.evaluate(points[rows])
+    nearest[rows] = np.minimum(nearest[rows], np.abs(d))
+    margin[rows] = np.minimum(margin[rows], np.abs(d))
+    _brute_force(node.negative, points, rows[d < 0], material, nearest, margin)
+    _brute_force(node.positive, points, rows[d >= 0], material, nearest, margin)
 
 
 def test_surfaces_numba_and_numpy_agree_and_round_trip():
@@ -76,11 +78,14 @@ def test_random_trees_locate_like_brute_force_on_100k_points(tmp_path):
             continue
         tree = BSPTree.from_nodes(root)
         material, distance = tree.locate(points)
-        check = rng.choice(len(points), 3000, replace=False)
-        expected = np.array([_brute_force(root, points[i]) for i in check])
-        near = expected[:, 1] < 1e-9
-        assert np.array_equal(material[check][~near], expected[~near, 0].astype(int))
-        assert np.allclose(distance[check], expected[:, 1])
+        expected = np.full(len(points), -1)
+        nearest = np.full(len(points), np.inf)
+        margin = np.full(len(points), np.inf)
+        _brute_force(root, points, np.arange(len(points)), expected, nearest, margin)
+        far = margin > 1e-9  # exact agreement except within 1e-9 of a surface on the path
+        assert far.mean() > 0.999
+        assert np.array_equal(material[far], expected[far])
+        assert np.allclose(distance[far], nearest[far], rtol=1e-12, atol=1e-12)
         # whole-array agreement with the Python-callable (level by level) path
         user_tree = BSPTree.from_nodes(BSPNode(UserSurface(lambda p: p[:, 0] - 10.0), root, 0))
         assert np.array_equal(user_tree.locate(points)[0], material)
