@@ -45,6 +45,30 @@ def _symmetric_limits(values, percentile: float) -> tuple[float, float]:
     return -limit, limit
 
 
+def _save_screenshot(plotter, path: str | os.PathLike) -> Path:
+    """Write the plotter's image to ``path`` atomically and close it."""
+    path = Path(path)
+    try:
+        with atomic_path(path) as tmp:
+            plotter.screenshot(str(tmp))
+    finally:
+        plotter.close()
+    return path
+
+
+def _save_figure(fig, path: str | os.PathLike) -> Path:
+    """Write a matplotlib figure to ``path`` as PNG atomically and close it."""
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=100, format="png")
+    finally:
+        plt.close(fig)
+    return path
+
+
 def render_scalars(
     mesh,
     path: str | os.PathLike,
@@ -76,11 +100,7 @@ def render_scalars(
     plotter.add_mesh(mesh, scalars=scalars, cmap=curvature_cmap(), clim=_symmetric_limits(mesh[scalars], percentile),
                      smooth_shading=True)
     plotter.view_isometric()
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        plotter.screenshot(str(tmp))
-    plotter.close()
-    return path
+    return _save_screenshot(plotter, path)
 
 
 def render_strip(
@@ -133,11 +153,7 @@ def render_strip(
             if labels is not None:
                 plotter.add_text(labels[i][j], font_size=10, position="upper_left")
             plotter.view_isometric()
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        plotter.screenshot(str(tmp))
-    plotter.close()
-    return path
+    return _save_screenshot(plotter, path)
 
 
 def plot_statistics(series: dict[str, dict[str, np.ndarray]], path: str | os.PathLike) -> Path:
@@ -167,11 +183,7 @@ def plot_statistics(series: dict[str, dict[str, np.ndarray]], path: str | os.Pat
         ax.set_title(title)
         ax.set_xlabel("step")
     axes[0, 0].legend()
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
-    plt.close(fig)
-    return path
+    return _save_figure(fig, path)
 
 
 def plot_slices(image, path: str | os.PathLike, *, scalars: str = "hardness", title: str = "") -> Path:
@@ -210,8 +222,4 @@ def plot_slices(image, path: str | os.PathLike, *, scalars: str = "hardness", ti
     fig.colorbar(shown, ax=axes, shrink=0.8, label=scalars)
     if title:
         fig.suptitle(title)
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
-    plt.close(fig)
-    return path
+    return _save_figure(fig, path)
