@@ -53,8 +53,7 @@ def main() -> None:
 
     topo = edge_topology(faces, len(points))
     ring = one_ring(faces, len(points), edges=topo.edges)
-    fixed = np.zeros(len(points), bool)
-    fixed[topo.edges[topo.face_count != 2].ravel()] = True
+    fixed = topo.irregular_vertices(len(points))
     mesh = pv.PolyData.from_regular_faces(points.copy(), faces)
     vtk_displacement = np.zeros_like(points)
 

@@ -54,6 +54,12 @@ class EdgeTopology:
         """Number of edges used by more than two faces."""
         return int(np.count_nonzero(self.face_count > 2))
 
+    def irregular_vertices(self, n_vertices: int) -> np.ndarray:
+        """Mask (V,) of vertices on a boundary or non-manifold edge (not used by exactly two faces)."""
+        mask = np.zeros(n_vertices, bool)
+        mask[self.edges[self.face_count != 2].ravel()] = True
+        return mask
+
 
 @njit(cache=True, error_model="numpy")
 def _group_halfedges(faces, n_vertices):

@@ -277,8 +277,7 @@ class WeatheringSolver:
         self._ring = one_ring(self.faces, n, edges=topo.edges)
         self._edges = topo.edges
         self._usable = topo.face_count == 2
-        self._fixed = np.zeros(n, bool)
-        self._fixed[topo.edges[topo.face_count != 2].ravel()] = True
+        self._fixed = topo.irregular_vertices(n)
         self._order = None  # spatial face order of the intersection check, made on first use
 
     # -- state -------------------------------------------------------------------------
