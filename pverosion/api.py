@@ -119,8 +119,8 @@ def weather(
     >>> bool(out.field_data["weathering_volume"][-1] < 8.0)
     True
     """
-    options = dict(iterations=iterations, power=power, step_divisor=step_divisor, direction=direction,
-                   min_edge_ratio=min_edge_ratio, check_every=check_every, orientation=orientation)
+    options = {"iterations": iterations, "power": power, "step_divisor": step_divisor, "direction": direction,
+               "min_edge_ratio": min_edge_ratio, "check_every": check_every, "orientation": orientation}
     if isinstance(erodibility, str):
         return apply_filter(Weathering, mesh, erodibility_array=erodibility, **options)
     return apply_filter(Weathering, mesh, erodibility=erodibility, **options)
