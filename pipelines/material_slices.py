@@ -20,7 +20,6 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import pverosion
-from pverosion.io import atomic_path
 from pverosion.kernels.bsp import BSPNode, BSPTree
 from pverosion.kernels.materials import BSPMaterials, Gradual
 from pverosion.kernels.surfaces import (
@@ -33,6 +32,7 @@ from pverosion.kernels.surfaces import (
     SinSurface,
     Sphere,
 )
+from pverosion.plotting import save_figure
 
 HEAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "HeadMRVolume.mhd"
 
@@ -50,10 +50,7 @@ def panels(fields: dict, path: Path) -> Path:
         ax.set_title(title)
         ax.set_xlabel("x")
         ax.set_ylabel("z")
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def main() -> None:

@@ -11,7 +11,15 @@ from matplotlib.colors import LinearSegmentedColormap
 
 from pverosion.io import atomic_path
 
-__all__ = ["CURVATURE_CMAP", "curvature_cmap", "plot_slices", "plot_statistics", "render_scalars", "render_strip"]
+__all__ = [
+    "CURVATURE_CMAP",
+    "curvature_cmap",
+    "plot_slices",
+    "plot_statistics",
+    "render_scalars",
+    "render_strip",
+    "save_figure",
+]
 
 CURVATURE_CMAP = "pverosion_curvature"
 """Name of the registered blue-green-red colour map (Skorkovská 2019, Figure 2)."""
@@ -56,7 +64,7 @@ def _save_screenshot(plotter, path: str | os.PathLike) -> Path:
     return path
 
 
-def _save_figure(fig, path: str | os.PathLike) -> Path:
+def save_figure(fig, path: str | os.PathLike) -> Path:
     """Write a matplotlib figure to ``path`` as PNG atomically and close it."""
     import matplotlib.pyplot as plt
 
@@ -183,7 +191,7 @@ def plot_statistics(series: dict[str, dict[str, np.ndarray]], path: str | os.Pat
         ax.set_title(title)
         ax.set_xlabel("step")
     axes[0, 0].legend()
-    return _save_figure(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_slices(image, path: str | os.PathLike, *, scalars: str = "hardness", title: str = "") -> Path:
@@ -222,4 +230,4 @@ def plot_slices(image, path: str | os.PathLike, *, scalars: str = "hardness", ti
     fig.colorbar(shown, ax=axes, shrink=0.8, label=scalars)
     if title:
         fig.suptitle(title)
-    return _save_figure(fig, path)
+    return save_figure(fig, path)

@@ -20,3 +20,12 @@ CHUNKS = 4
 def chunk_range(n_items, chunk):
     """Half-open index range ``[start, stop)`` of ``chunk`` out of :data:`CHUNKS`."""
     return chunk * n_items // CHUNKS, (chunk + 1) * n_items // CHUNKS
+
+
+@njit(cache=True, inline="always")
+def chunk_total(acc, i, k):
+    """Sum over the chunks, in chunk order, of component ``k`` of item ``i`` in ``acc`` (CHUNKS, N, K)."""
+    total = acc[0, i, k]
+    for c in range(1, CHUNKS):
+        total += acc[c, i, k]
+    return total

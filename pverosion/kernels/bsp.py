@@ -28,7 +28,6 @@ from pverosion.kernels.surfaces import (
     PLANE,
     USER,
     ImplicitSurface,
-    surface_from_dict,
     surface_value,
 )
 
@@ -303,8 +302,6 @@ class BSPTree:
 
 def split(surface: ImplicitSurface, negative: int, positive: int) -> BSPTree:
     """Division by one surface: material ``negative`` where F < 0, ``positive`` elsewhere."""
-    if isinstance(surface, dict):
-        surface = surface_from_dict(surface)
     return BSPTree.from_nodes(BSPNode(surface, negative, positive))
 
 

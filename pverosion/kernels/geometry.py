@@ -10,7 +10,7 @@ import numpy as np
 from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
-from pverosion.kernels._scatter import CHUNKS, chunk_range
+from pverosion.kernels._scatter import CHUNKS, chunk_range, chunk_total
 from pverosion.kernels.topology import edge_topology
 
 __all__ = [
@@ -72,9 +72,7 @@ def _scatter_normals(points, faces, max_weights):
                 acc[c, i2, d] += w2 * n[d]
     out = np.zeros((n_vertices, 3))
     for i in prange(n_vertices):
-        total = v3.row(acc[0], i)
-        for c in range(1, CHUNKS):
-            total = v3.add(total, v3.row(acc[c], i))
+        total = (chunk_total(acc, i, 0), chunk_total(acc, i, 1), chunk_total(acc, i, 2))
         length = v3.norm(total)
         if length > 0.0:
             v3.store(out, i, v3.scale(total, 1.0 / length))
