@@ -1,4 +1,4 @@
-"""Command line: ``pverosion <stage> IN -o OUT [options]`` and ``pverosion demo``.
+"""Command line: ``pverosion <stage> IN -o OUT [options]``, ``pverosion batch SCENARIO`` and ``pverosion demo``.
 
 Stage subcommands and their options are generated from the filters'
 :class:`~pverosion.filters.base.Param` metadata.
@@ -39,6 +39,17 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="weather a cube into a sphere; write the .pvd series and .png figures")
     demo.add_argument("-o", "--output-dir", type=Path, default=Path("pverosion_demo"),
                       help="folder for the results (default: pverosion_demo)")
+    batch = sub.add_parser("batch", help="run a scenario file's jobs on Dask (resumable)",
+                           description="Run every job of a TOML scenario on Dask distributed: an embedded "
+                           "LocalCluster by default, or the scheduler at --scheduler. Completed jobs are skipped "
+                           "on a re-run; see pverosion.batch for the scenario format.")
+    batch.add_argument("scenario", type=Path, help="scenario file (.toml)")
+    batch.add_argument("--out", type=Path, help="output folder (default: <scenario name>_batch)")
+    batch.add_argument("--scheduler", metavar="ADDRESS", help="address of a running Dask scheduler, e.g. tcp://host:8786")
+    batch.add_argument("--workers", type=int, metavar="N", help="workers of the local cluster (default: one per core)")
+    batch.add_argument("--threads-per-job", type=int, metavar="K",
+                       help="numba threads per job (default: cores / workers locally, 1 on a remote scheduler)")
+    batch.add_argument("--serial", action="store_true", help="run the jobs one by one in this process, without Dask")
     for filter_cls in ALL_FILTERS:
         cmd = sub.add_parser(_command_name(filter_cls), help=filter_cls.LABEL, description=filter_cls.__doc__,
                              formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -66,6 +77,7 @@ def _run_time_stage(filter_cls: type[ErosionFilter], mesh, options: dict, args: 
     import pyvista as pv
     from tqdm.auto import tqdm
 
+    from pverosion.filters.base import output_times
     from pverosion.io import TimeSeriesWriter
 
     n = options["iterations"]
@@ -73,33 +85,22 @@ def _run_time_stage(filter_cls: type[ErosionFilter], mesh, options: dict, args: 
         raise ValueError(f"--save-every must be >= 1; got {args.save_every}")
     if args.series is not None and args.save_every is None:
         raise ValueError("--series needs --save-every K")
-    times = [n]
-    if args.save_every:
-        times = sorted(set(range(0, n + 1, args.save_every)) | {n})
-    alg = filter_cls(**options)
-    alg.SetInputDataObject(0, mesh)
     series = None
     if args.save_every:
         series = TimeSeriesWriter(args.series or args.output.with_suffix(".pvd"))
-    result = None
     with tqdm(total=n, desc=_command_name(filter_cls), unit="step") as bar:
-        done = 0
-        for t in times:
-            # progress of this call, reported by the filter, drives the bar
-            def advance(caller, _event, start=done, stop=t):
-                target = start + round(caller.GetProgress() * (stop - start))
-                bar.update(max(target - bar.n, 0))
+        def advance(t: float) -> None:
+            bar.update(max(int(t) - bar.n, 0))
 
-            tag = alg.AddObserver("ProgressEvent", advance)
-            result = pv.wrap(alg.run_time(mesh, t))
-            alg.RemoveObserver(tag)
-            bar.update(max(t - bar.n, 0))
-            done = t
+        def save(t: float, result) -> None:
             if series is not None:
                 series.write(result, time=t)
+
+        result = filter_cls(**options).step_through(mesh, output_times(n, args.save_every),
+                                                    on_output=save, on_progress=advance)
     if series is not None:
         print(f"series: {len(series.entries)} steps -> {series.path}")
-    return result
+    return pv.wrap(result)
 
 
 def _run_stage(args: argparse.Namespace) -> None:
@@ -141,6 +142,22 @@ def _run_demo(args: argparse.Namespace) -> None:
     print(f"  wrote {run.series}, {out / 'cube_to_sphere.png'} and {out / 'cube_to_sphere_statistics.png'}")
 
 
+def _run_batch(args: argparse.Namespace) -> int:
+    from pverosion.batch import load_scenario, run_batch
+
+    scenario = load_scenario(args.scenario)
+    out = args.out or Path(f"{scenario.name}_batch")
+    report = run_batch(scenario, out, scheduler=args.scheduler, workers=args.workers, serial=args.serial,
+                       threads_per_job=args.threads_per_job)
+    print(f"batch {scenario.name}: {len(scenario.jobs)} jobs: {len(report.ran)} ran, {report.skipped} already done, "
+          f"{report.failed} failed; {report.seconds:.1f} s (+{report.seconds_startup:.1f} s start-up) "
+          f"-> {report.root / 'results.csv'}")
+    for row in report.rows:
+        if row["status"] != "done":
+            print(f"  job {row['index']} ({row['label'] or 'no sweep'}) failed: {row['error']}", file=sys.stderr)
+    return 1 if report.failed else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``pverosion`` console script; returns the exit status."""
     parser = build_parser()
@@ -148,9 +165,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "demo":
             _run_demo(args)
+        elif args.command == "batch":
+            return _run_batch(args)
         else:
             _run_stage(args)
-    except (ValueError, TypeError, FileNotFoundError, OSError) as exc:
+    except (ValueError, TypeError, FileNotFoundError, OSError, RuntimeError) as exc:
         print(f"pverosion {args.command}: error: {exc}", file=sys.stderr)
         return 2
     return 0

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pyvista as pv
 
-__all__ = ["load_cube", "load_cylinder", "load_hand", "load_rock", "load_torus", "periodic_grid_surface"]
+__all__ = ["EXAMPLES", "load_cube", "load_cylinder", "load_hand", "load_rock", "load_torus", "periodic_grid_surface"]
 
 
 def _triangulate_grid(n_u: int, n_v: int, *, wrap_u: bool, wrap_v: bool) -> np.ndarray:
@@ -166,3 +166,13 @@ def load_hand(*, subdivisions: int = 5, finger_length: float = 0.9, finger_width
     radius = 1.0 + lobes.sum(axis=1)
     palm = np.array([1.0, 1.0, 0.45])  # flattened across the palm
     return pv.PolyData.from_regular_faces(points * radius[:, None] * palm, sphere.regular_faces)
+
+
+EXAMPLES = {
+    "cube": load_cube,
+    "cylinder": load_cylinder,
+    "hand": load_hand,
+    "rock": load_rock,
+    "torus": load_torus,
+}
+"""Procedural example surfaces by name (batch scenarios use these names)."""

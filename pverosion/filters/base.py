@@ -11,6 +11,7 @@ option is written in one place.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from collections.abc import Callable, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -21,7 +22,15 @@ from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
 
 from pverosion.kernels.validation import InvalidMeshError
 
-__all__ = ["ErosionFilter", "Param", "polydata_triangles", "replace_triangles", "set_field_value", "set_point_array"]
+__all__ = [
+    "ErosionFilter",
+    "Param",
+    "output_times",
+    "polydata_triangles",
+    "replace_triangles",
+    "set_field_value",
+    "set_point_array",
+]
 
 
 @dataclass(frozen=True)
@@ -41,6 +50,9 @@ class Param:
         Allowed values of a string option.
     minimum, maximum : float, optional
         Inclusive bounds of a numeric option.
+    path : {"input", "output"}, optional
+        The option names a file the filter reads (``"input"``) or writes
+        (``"output"``); batch runs resolve such paths (see :mod:`pverosion.batch`).
     """
 
     name: str
@@ -49,6 +61,7 @@ class Param:
     choices: tuple[str, ...] | None = None
     minimum: float | None = None
     maximum: float | None = None
+    path: str | None = None
 
     @property
     def kind(self) -> type:
@@ -207,6 +220,69 @@ class ErosionFilter(VTKPythonAlgorithmBase):
         result = self.GetOutputDataObject(0).NewInstance()
         result.ShallowCopy(self.GetOutputDataObject(0))
         return result
+
+    def step_through(
+        self,
+        data,
+        times: Sequence[float],
+        *,
+        on_output: Callable[[float, Any], None] | None = None,
+        on_progress: Callable[[float], None] | None = None,
+    ):
+        """Run a time-dependent filter to each of the increasing ``times`` in turn.
+
+        Parameters
+        ----------
+        data : vtkDataObject
+            Input data object.
+        times : sequence of float
+            Output times, increasing; each run continues from the cached state.
+        on_output : callable, optional
+            ``on_output(time, output)`` after each time is reached.
+        on_progress : callable, optional
+            ``on_progress(t)`` with the fractional time reached so far, as the
+            filter reports progress.
+
+        Returns
+        -------
+        vtkDataObject
+            The output at the last time.
+        """
+        result = None
+        reached = 0.0
+        for t in times:
+            tag = None
+            if on_progress is not None:
+                def relay(caller, _event, start=reached, stop=t):
+                    on_progress(start + caller.GetProgress() * (stop - start))
+
+                tag = self.AddObserver("ProgressEvent", relay)
+            try:
+                result = self.run_time(data, t)
+            finally:
+                if tag is not None:
+                    self.RemoveObserver(tag)
+            reached = t
+            if on_progress is not None:
+                on_progress(t)
+            if on_output is not None:
+                on_output(t, result)
+        return result
+
+
+def output_times(iterations: int, save_every: int | None) -> list[int]:
+    """Steps to output: every ``save_every``-th of 0..iterations and the last (only the last when None/0).
+
+    Raises
+    ------
+    ValueError
+        If ``save_every`` is negative.
+    """
+    if save_every is not None and save_every < 0:
+        raise ValueError(f"save_every must be >= 0; got {save_every}")
+    if not save_every:
+        return [iterations]
+    return sorted(set(range(0, iterations + 1, save_every)) | {iterations})
 
 
 def _make_setter(name):

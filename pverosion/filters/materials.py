@@ -80,7 +80,7 @@ class MaterialsFromVolume(ErosionFilter):
         Param("seed", 0, "Seed of the face insertion order.", minimum=0),
         Param("hardness", "", "Hardness per material, comma separated (default 1, 2, ..., m+1)."),
         Param("gradual_scale", 0.0, "Softer away from the boundaries over this distance (0: off).", minimum=0.0),
-        Param("tree_file", "", "Also save the tree to this JSON file."),
+        Param("tree_file", "", "Also save the tree to this JSON file.", path="output"),
     )
 
     def __init__(self, **options):
@@ -140,7 +140,7 @@ class MaterialSampler(ErosionFilter):
     OUTPUT_TYPE = "vtkImageData"
     PARAMS = (
         Param("association", "point", "Sample at the grid points or at the cell centres.", choices=ASSOCIATIONS),
-        Param("tree_file", "", "BSP tree JSON file to sample when no field is set from Python."),
+        Param("tree_file", "", "BSP tree JSON file to sample when no field is set from Python.", path="input"),
         Param("hardness", "", "Hardness per material of the tree file, comma separated (default 1, 2, ...)."),
     )
 

@@ -186,9 +186,15 @@ def point_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 @njit(cache=True, error_model="numpy", parallel=True)
 def _mean_edge_length(points, edges):
+    """Summed in fixed edge chunks, so bit-identical for any thread count."""
+    partial = np.zeros(CHUNKS)
+    for c in prange(CHUNKS):
+        lo, hi = chunk_range(edges.shape[0], c)
+        for e in range(lo, hi):
+            partial[c] += v3.norm(v3.sub(v3.row(points, edges[e, 0]), v3.row(points, edges[e, 1])))
     total = 0.0
-    for e in prange(edges.shape[0]):
-        total += v3.norm(v3.sub(v3.row(points, edges[e, 0]), v3.row(points, edges[e, 1])))
+    for c in range(CHUNKS):
+        total += partial[c]
     return total / max(edges.shape[0], 1)
 
 

@@ -41,6 +41,7 @@ import scipy.sparse as sp
 from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._scatter import CHUNKS, chunk_range
 from pverosion.kernels.curvature import CurvatureOperator
 from pverosion.kernels.geometry import average_edge_length, vertex_normals
 from pverosion.kernels.intersection import intersecting_faces, spatial_order
@@ -68,14 +69,21 @@ Erodibility = np.ndarray | Callable[[np.ndarray], np.ndarray] | MaterialField | 
 
 @njit(cache=True, error_model="numpy", parallel=True)
 def _volume_area(points, faces, origin):
+    """Enclosed volume and area; summed in fixed face chunks, so bit-identical for any thread count."""
+    partial = np.zeros((CHUNKS, 2))
+    for c in prange(CHUNKS):
+        lo, hi = chunk_range(faces.shape[0], c)
+        for f in range(lo, hi):
+            a = v3.sub(v3.row(points, faces[f, 0]), (origin[0], origin[1], origin[2]))
+            b = v3.sub(v3.row(points, faces[f, 1]), (origin[0], origin[1], origin[2]))
+            cc = v3.sub(v3.row(points, faces[f, 2]), (origin[0], origin[1], origin[2]))
+            partial[c, 0] += v3.dot(a, v3.cross(b, cc))
+            partial[c, 1] += v3.norm(v3.cross(v3.sub(b, a), v3.sub(cc, a)))
     volume = 0.0
     area = 0.0
-    for f in prange(faces.shape[0]):
-        a = v3.sub(v3.row(points, faces[f, 0]), (origin[0], origin[1], origin[2]))
-        b = v3.sub(v3.row(points, faces[f, 1]), (origin[0], origin[1], origin[2]))
-        c = v3.sub(v3.row(points, faces[f, 2]), (origin[0], origin[1], origin[2]))
-        volume += v3.dot(a, v3.cross(b, c))
-        area += v3.norm(v3.cross(v3.sub(b, a), v3.sub(c, a)))
+    for c in range(CHUNKS):
+        volume += partial[c, 0]
+        area += partial[c, 1]
     return volume / 6.0, area / 2.0
 
 

@@ -1,0 +1,330 @@
+"""Batch scenario files (TOML): parsing, validation and expansion of the parameter sweep into jobs.
+
+A scenario names one input, a pipeline of stages with their options, the
+outputs to keep, and optionally a sweep whose value lists expand into the
+cartesian product of jobs::
+
+    name = "rocks"                 # optional; default: the file name
+    seed = 0                       # default of every `seed` option left unset
+
+    [input]
+    example = "rock"               # a procedural example (pverosion.examples.EXAMPLES) ...
+    subdivisions = 4               # ... with its keyword options
+    # file = "meshes/rock.ply"     # or a mesh/volume file, relative to this scenario
+
+    [[stages]]
+    stage = "weather"              # a pverosion stage (CLI command name)
+    iterations = 100               # its options (see `pverosion weather --help`)
+
+    [[stages]]
+    stage = "curvature"
+    name = "final_curvature"       # optional label; default: the stage name
+
+    [sweep]
+    "input.seed" = [1, 2, 3, 4]    # <input | stage label>.<option>, or seed
+    "weather.power" = [1.0, 2.0, 4.0]
+
+    [outputs]
+    format = "vtp"                 # format of final.<ext>
+    save_every = 50                # also keep every 50th step of time-dependent stages (0: none)
+    screenshot = false             # render final.png
+
+Every job is validated before any runs; errors name the file, the table
+and the key.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import itertools
+import json
+import os
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pverosion.examples import EXAMPLES
+from pverosion.filters import ALL_FILTERS
+from pverosion.filters.base import ErosionFilter, Param
+
+__all__ = ["IMAGE_SUFFIXES", "Job", "Scenario", "ScenarioError", "STAGES", "load_scenario", "parse_scenario"]
+
+STAGES: dict[str, type[ErosionFilter]] = {cls.COMMAND or cls.__name__.lower(): cls for cls in ALL_FILTERS}
+"""Stages a scenario may use, by CLI command name."""
+
+IMAGE_SUFFIXES = (".vti", ".mhd", ".mha", ".nrrd", ".nhdr")
+"""File suffixes read as volumes (ImageData); anything else is read as a surface."""
+
+MESH_FORMATS = ("vtp", "vtk", "ply", "stl", "obj")
+IMAGE_FORMATS = ("vti",)
+_TOP_KEYS = ("name", "description", "seed", "input", "stages", "sweep", "outputs")
+_OUTPUT_DEFAULTS = {"format": "", "save_every": 0, "screenshot": False}
+
+
+class ScenarioError(ValueError):
+    """A scenario file that cannot run; the message names the file, table and key."""
+
+
+@dataclass(frozen=True)
+class Job:
+    """One fully specified run: input, stages with options, outputs.
+
+    Attributes
+    ----------
+    index : int
+        Position in the expanded sweep (0-based).
+    id : str
+        SHA-256 of the job's content (input, stages, outputs): the same job in
+        a re-run has the same id, so completed jobs are recognised.
+    label : str
+        The swept values, e.g. ``"input.seed=1, weather.power=2.0"``.
+    input : dict
+        ``{"example": name, "options": {...}}`` or ``{"file": absolute path}``.
+    stages : tuple of dict
+        ``{"stage": command, "name": label, "options": {...}}`` per stage.
+    outputs : dict
+        ``format``, ``save_every``, ``screenshot``.
+    swept : dict
+        The sweep key and value of this job for each swept key.
+    """
+
+    index: int
+    id: str
+    label: str
+    input: dict
+    stages: tuple
+    outputs: dict
+    swept: dict = field(default_factory=dict)
+
+    @property
+    def folder(self) -> str:
+        """Name of the job's output folder: index and id prefix, e.g. ``0003-1a2b3c4d5e``."""
+        return f"{self.index:04d}-{self.id[:10]}"
+
+    def to_dict(self) -> dict:
+        """JSON-ready description of the job."""
+        return {"index": self.index, "id": self.id, "label": self.label, "folder": self.folder,
+                "input": self.input, "stages": list(self.stages), "outputs": self.outputs, "swept": self.swept}
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A parsed and validated scenario.
+
+    Attributes
+    ----------
+    name : str
+    path : pathlib.Path or None
+        The scenario file (None when parsed from a string).
+    text : str
+        The TOML source, kept beside the results.
+    jobs : tuple of Job
+        The expanded sweep, every job validated.
+    """
+
+    name: str
+    path: Path | None
+    text: str
+    jobs: tuple[Job, ...]
+
+
+def load_scenario(path: str | os.PathLike) -> Scenario:
+    """Read, validate and expand the scenario file ``path``.
+
+    Relative input files are resolved against the scenario's folder.
+
+    Raises
+    ------
+    ScenarioError
+        If the file is missing or not TOML, or any job would be invalid.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ScenarioError(f"no such scenario file: {path}")
+    return parse_scenario(path.read_text(encoding="utf-8"), source=path)
+
+
+def parse_scenario(text: str, *, source: str | os.PathLike | None = None, base: str | os.PathLike | None = None) -> Scenario:
+    """Validate and expand a scenario given as TOML text.
+
+    Parameters
+    ----------
+    text : str
+        TOML source.
+    source : path-like, optional
+        The file it came from: names it in errors, and its folder is the
+        default ``base``.
+    base : path-like, optional
+        Folder that relative input files are resolved against (default:
+        the source's folder, else the current folder).
+
+    Returns
+    -------
+    Scenario
+    """
+    where = str(source) if source is not None else "scenario"
+    base = Path(base) if base is not None else (Path(source).parent if source is not None else Path.cwd())
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{where}: not valid TOML: {exc}") from None
+    try:
+        return _expand(doc, text=text, source=Path(source) if source is not None else None, base=base)
+    except ScenarioError as exc:
+        raise ScenarioError(f"{where}: {exc}") from None
+
+
+def _unknown(keys, known, where: str) -> None:
+    extra = [k for k in keys if k not in known]
+    if extra:
+        raise ScenarioError(f"{where}: unknown key {extra[0]!r} (known: {', '.join(known)})")
+
+
+def _table(doc: dict, key: str, where: str) -> dict:
+    value = doc.get(key, {})
+    if not isinstance(value, dict):
+        raise ScenarioError(f"{where}: must be a table; got {value!r}")
+    return value
+
+
+def _expand(doc: dict, *, text: str, source: Path | None, base: Path) -> Scenario:
+    _unknown(doc, _TOP_KEYS, "top level")
+    name = doc.get("name", source.stem if source is not None else "scenario")
+    if not isinstance(name, str) or not name:
+        raise ScenarioError(f"name: must be a non-empty string; got {name!r}")
+    if "input" not in doc:
+        raise ScenarioError("[input]: missing (give example = NAME or file = PATH)")
+    stages = doc.get("stages")
+    if not isinstance(stages, list) or not stages:
+        raise ScenarioError("[[stages]]: missing; give at least one [[stages]] table with stage = NAME")
+    labels = []
+    for k, stage in enumerate(stages):
+        if not isinstance(stage, dict):
+            raise ScenarioError(f"[[stages]] #{k + 1}: must be a table")
+        if "stage" not in stage:
+            raise ScenarioError(f"[[stages]] #{k + 1}: missing key 'stage' (one of {', '.join(STAGES)})")
+        label = stage.get("name", stage["stage"])
+        if not isinstance(label, str) or not label.isidentifier():
+            raise ScenarioError(f"[[stages]] #{k + 1}: name must be an identifier; got {label!r}")
+        if label in labels or label in ("input", "seed", "outputs"):
+            raise ScenarioError(f"[[stages]] #{k + 1}: name {label!r} is taken; give each stage a distinct name")
+        labels.append(label)
+    sweep = _table(doc, "sweep", "[sweep]")
+    for key, values in sweep.items():
+        head = key.split(".", 1)[0]
+        if key != "seed" and (head not in ("input", *labels) or "." not in key):
+            raise ScenarioError(f"[sweep] {key!r}: keys are seed, input.OPTION or STAGE.OPTION "
+                                f"with STAGE one of {', '.join(labels)}")
+        if not isinstance(values, list) or not values:
+            raise ScenarioError(f"[sweep] {key!r}: must be a non-empty list of values; got {values!r}")
+    jobs = []
+    keys = list(sweep)
+    for index, combo in enumerate(itertools.product(*(sweep[k] for k in keys))):
+        swept = dict(zip(keys, combo))
+        context = f"[sweep] {', '.join(f'{k} = {v!r}' for k, v in swept.items())}: " if swept else ""
+        try:
+            jobs.append(_job(doc, stages, labels, swept, index=index, base=base))
+        except ScenarioError as exc:
+            raise ScenarioError(f"{context}{exc}") from None
+    return Scenario(name=name, path=source, text=text, jobs=tuple(jobs))
+
+
+def _set_swept(table: dict, swept: dict, prefix: str) -> dict:
+    table = dict(table)
+    for key, value in swept.items():
+        if key.startswith(prefix + "."):
+            table[key[len(prefix) + 1:]] = value
+    return table
+
+
+def _job(doc: dict, stages: list, labels: list, swept: dict, *, index: int, base: Path) -> Job:
+    seed = swept.get("seed", doc.get("seed", 0))
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ScenarioError(f"seed: must be an integer >= 0; got {seed!r}")
+    spec_input = _input(_set_swept(_table(doc, "input", "[input]"), swept, "input"), seed=seed, base=base)
+    kind = "vtkImageData" if "file" in spec_input and spec_input["file"].lower().endswith(IMAGE_SUFFIXES) \
+        else "vtkPolyData"
+    spec_stages = []
+    for k, (stage, label) in enumerate(zip(stages, labels)):
+        where = f"[[stages]] #{k + 1} ({label})"
+        table = _set_swept({key: v for key, v in stage.items() if key not in ("stage", "name")}, swept, label)
+        cls = STAGES.get(stage["stage"]) if isinstance(stage["stage"], str) else None
+        if cls is None:
+            raise ScenarioError(f"{where}: unknown stage {stage['stage']!r} (stages: {', '.join(STAGES)})")
+        if cls.INPUT_TYPE != kind:
+            raise ScenarioError(f"{where}: stage {stage['stage']!r} takes {cls.INPUT_TYPE[3:]} but gets {kind[3:]} "
+                                "from the step before")
+        kind = cls.OUTPUT_TYPE
+        spec_stages.append({"stage": stage["stage"], "name": label,
+                            "options": _stage_options(cls, table, seed=seed, base=base, where=where)})
+    outputs = dict(_OUTPUT_DEFAULTS)
+    given = _table(doc, "outputs", "[outputs]")
+    _unknown(given, tuple(_OUTPUT_DEFAULTS), "[outputs]")
+    outputs.update(given)
+    formats = IMAGE_FORMATS if kind == "vtkImageData" else MESH_FORMATS
+    fmt = outputs["format"] or formats[0]
+    if fmt not in formats:
+        raise ScenarioError(f"[outputs] format: {fmt!r} cannot hold the final {kind[3:]} (one of {', '.join(formats)})")
+    outputs["format"] = fmt
+    outputs["save_every"] = _check(Param("save_every", 0, "", minimum=0), outputs["save_every"], "[outputs]")
+    outputs["screenshot"] = _check(Param("screenshot", False, ""), outputs["screenshot"], "[outputs]")
+    content = {"input": spec_input, "stages": spec_stages, "outputs": outputs}
+    digest = hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
+    label = ", ".join(f"{k}={v}" for k, v in swept.items())
+    return Job(index=index, id=digest, label=label, input=spec_input, stages=tuple(spec_stages), outputs=outputs,
+               swept=swept)
+
+
+def _check(param: Param, value: Any, where: str) -> Any:
+    try:
+        return param.validate(value)
+    except (TypeError, ValueError) as exc:
+        raise ScenarioError(f"{where}: {exc}") from None
+
+
+def _input(table: dict, *, seed: int, base: Path) -> dict:
+    if ("example" in table) == ("file" in table):
+        raise ScenarioError("[input]: give exactly one of example = NAME or file = PATH")
+    if "file" in table:
+        _unknown(table, ("file",), "[input]")
+        path = table["file"]
+        if not isinstance(path, str):
+            raise ScenarioError(f"[input] file: must be a path string; got {path!r}")
+        full = (base / path).resolve()
+        if not full.is_file():
+            raise ScenarioError(f"[input] file: no such file {path!r} (looked for {full})")
+        return {"file": str(full)}
+    name = table["example"]
+    loader = EXAMPLES.get(name) if isinstance(name, str) else None
+    if loader is None:
+        raise ScenarioError(f"[input] example: unknown example {name!r} (examples: {', '.join(EXAMPLES)})")
+    defaults = {p.name: p.default for p in inspect.signature(loader).parameters.values()}
+    options = {k: v for k, v in table.items() if k != "example"}
+    _unknown(options, tuple(defaults), f"[input] example {name!r}")
+    checked = {k: _check(Param(k, defaults[k], ""), v, "[input]") for k, v in options.items()}
+    if "seed" in defaults and "seed" not in checked:
+        checked["seed"] = seed
+    return {"example": name, "options": checked}
+
+
+def _stage_options(cls: type[ErosionFilter], table: dict, *, seed: int, base: Path, where: str) -> dict:
+    options = {}
+    for key, value in table.items():
+        try:
+            param = cls.param(key)
+        except TypeError as exc:
+            raise ScenarioError(f"{where}: {exc}") from None
+        value = _check(param, value, where)
+        if param.path == "input" and value:
+            full = (base / value).resolve()
+            if not full.is_file():
+                raise ScenarioError(f"{where} {key}: no such file {value!r} (looked for {full})")
+            value = str(full)
+        elif param.path == "output" and value and (Path(value).is_absolute() or len(Path(value).parts) != 1):
+            raise ScenarioError(f"{where} {key}: give a plain file name; it is written into the job's folder")
+        options[key] = value
+    if "seed" not in options and any(p.name == "seed" for p in cls.PARAMS):
+        options["seed"] = seed
+    return options
