@@ -4,6 +4,7 @@ import pyvista as pv
 from conftest import height_field
 
 import pverosion
+import pverosion.examples
 from pverosion.examples import load_cube, load_hand
 from pverosion.filters import Weathering
 from pverosion.kernels.intersection import intersecting_faces
@@ -89,6 +90,26 @@ def test_same_inputs_give_bit_identical_outputs():
     a = pverosion.weather(cube, iterations=40, power=2.0)
     b = pverosion.weather(cube, iterations=40, power=2.0)
     assert np.array_equal(a.points, b.points) and np.array_equal(a.regular_faces, b.regular_faces)
+
+
+def test_outputs_and_statistics_are_independent_of_thread_count():
+    import numba
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs at least two threads to compare")
+    rock = pverosion.examples.load_rock(subdivisions=4, seed=3)
+    before = numba.get_num_threads()
+    runs = []
+    try:
+        for threads in (1, numba.config.NUMBA_NUM_THREADS):
+            numba.set_num_threads(threads)
+            runs.append(pverosion.weather(rock, iterations=30, power=2.0))
+    finally:
+        numba.set_num_threads(before)
+    one, many = runs
+    assert np.array_equal(one.points, many.points)
+    for name in one.field_data.keys():  # volume, area, curvature statistics per step
+        assert np.array_equal(one.field_data[name], many.field_data[name]), name
 
 
 def test_higher_power_erodes_protrusions_relative_to_the_body():

@@ -162,6 +162,7 @@ def run_batch(
             start = time.perf_counter()
             _run_on_dask(active, pending, root, threads, finish)
             report.seconds = time.perf_counter() - start
+            _remove_leftovers(root)  # attempts cut short by a worker's death
         report.rows = [rows[job.id] for job in jobs if job.id in rows]
         report.failed = sum(row["status"] != "done" for row in report.rows)
     return report
@@ -218,12 +219,16 @@ def _check_workers(client, root: Path) -> None:
     client.gather(warm)
 
 
+def _remove_leftovers(root: Path) -> None:
+    """Remove the temporary folders of job attempts that were interrupted (their jobs ran again)."""
+    for stale in (root / JOBS_FOLDER).glob(f"{TEMP_PREFIX}*"):
+        shutil.rmtree(stale, ignore_errors=True)
+
+
 def _prepare(root: Path, scenario: Scenario) -> None:
     """Create the output folders, remove leftovers of interrupted jobs, keep the scenario and job list."""
-    jobs = root / JOBS_FOLDER
-    jobs.mkdir(parents=True, exist_ok=True)
-    for stale in jobs.glob(f"{TEMP_PREFIX}*"):
-        shutil.rmtree(stale, ignore_errors=True)
+    (root / JOBS_FOLDER).mkdir(parents=True, exist_ok=True)
+    _remove_leftovers(root)
     with atomic_path(root / "scenario.toml") as tmp:
         tmp.write_text(scenario.text, encoding="utf-8")
     write_json([job.to_dict() for job in scenario.jobs], root / "jobs.json")

@@ -228,6 +228,12 @@ def _expand(doc: dict, *, text: str, source: Path | None, base: Path) -> Scenari
             jobs.append(_job(doc, stages, labels, swept, index=index, base=base))
         except ScenarioError as exc:
             raise ScenarioError(f"{context}{exc}") from None
+    first: dict[str, Job] = {}
+    for job in jobs:
+        if job.id in first:
+            raise ScenarioError(f"[sweep]: jobs {first[job.id].index} and {job.index} are identical "
+                                f"({first[job.id].label} / {job.label}); list each value once")
+        first[job.id] = job
     return Scenario(name=name, path=source, text=text, jobs=tuple(jobs))
 
 

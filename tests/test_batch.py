@@ -1,0 +1,269 @@
+"""Batch runs: scenario validation, resumable runs, Dask cluster equal to serial, worker death, forced stop."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import pyvista as pv
+
+from pverosion.batch import Manifest, ScenarioError, load_scenario, parse_scenario, run_batch
+from pverosion.batch.runner import _exclusive
+from pverosion.cli import main
+
+SWEEP = """
+name = "rocks"
+[input]
+example = "rock"
+subdivisions = 4
+[[stages]]
+stage = "weather"
+iterations = 60
+[[stages]]
+stage = "curvature"
+[sweep]
+"weather.power" = [1.0, 2.0, 4.0]
+"input.seed" = [1, 2, 3, 4]
+[outputs]
+save_every = 20
+"""
+
+
+def _write(folder: Path, text: str, name: str = "scenario.toml") -> Path:
+    path = folder / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _outputs(root: Path) -> dict[str, bytes]:
+    """Every file of the completed job folders except the log and result (which hold timings)."""
+    files = {}
+    for path in sorted((root / "jobs").rglob("*")):
+        if path.is_file() and path.name not in ("log.txt", "result.json"):
+            files[str(path.relative_to(root))] = path.read_bytes()
+    return files
+
+
+def _check_complete(root: Path, n_jobs: int) -> list[dict]:
+    """All jobs exactly once: results, manifest and folders agree; no temporary folders left."""
+    rows = json.loads((root / "results.json").read_text())
+    assert len(rows) == n_jobs and len({r["id"] for r in rows}) == n_jobs
+    assert all(r["status"] == "done" for r in rows)
+    manifest = Manifest(root)
+    assert {k for k, e in manifest.entries.items() if e["status"] == "done"} == {r["id"] for r in rows}
+    folders = sorted(p.name for p in (root / "jobs").iterdir())
+    assert folders == sorted(r["folder"] for r in rows)
+    csv_lines = (root / "results.csv").read_text().strip().splitlines()
+    assert len(csv_lines) == n_jobs + 1
+    return rows
+
+
+@pytest.fixture(scope="module")
+def serial_reference(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("serial")
+    scenario = _write(folder, SWEEP)
+    report = run_batch(scenario, folder / "out", serial=True, progress=False)
+    assert len(report.ran) == 12 and report.failed == 0
+    return scenario, folder / "out"
+
+
+# --- scenario files -------------------------------------------------------------------------------------
+
+
+def test_sweep_expands_to_the_cartesian_product_in_order(tmp_path):
+    scenario = load_scenario(_write(tmp_path, SWEEP))
+    assert len(scenario.jobs) == 12
+    powers = [job.stages[0]["options"]["power"] for job in scenario.jobs]
+    seeds = [job.input["options"]["seed"] for job in scenario.jobs]
+    assert powers == [1.0] * 4 + [2.0] * 4 + [4.0] * 4 and seeds == [1, 2, 3, 4] * 3
+    assert len({job.id for job in scenario.jobs}) == 12
+    # ids depend on content only: the same scenario parsed again gives the same jobs
+    assert [j.id for j in load_scenario(tmp_path / "scenario.toml").jobs] == [j.id for j in scenario.jobs]
+
+
+def test_scenario_seed_fills_unset_seed_options(tmp_path):
+    text = '[input]\nexample = "rock"\n[[stages]]\nstage = "weather"\n'
+    assert parse_scenario("seed = 7\n" + text).jobs[0].input["options"]["seed"] == 7
+    swept = parse_scenario(text + '[sweep]\nseed = [3, 5]\n')
+    assert [j.input["options"]["seed"] for j in swept.jobs] == [3, 5]
+
+
+def test_input_file_is_resolved_against_the_scenario_folder(tmp_path):
+    (tmp_path / "meshes").mkdir()
+    pv.Sphere().save(tmp_path / "meshes" / "ball.vtp")
+    scenario = load_scenario(_write(tmp_path, '[input]\nfile = "meshes/ball.vtp"\n[[stages]]\nstage = "curvature"\n'))
+    assert scenario.jobs[0].input["file"] == str((tmp_path / "meshes" / "ball.vtp").resolve())
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ('[input]\nexample = "rock"\n[[stages]]\nstage = "wether"\n', r"\[\[stages\]\] #1.*unknown stage 'wether'"),
+        ('[input]\nexample = "rock"\n[[stages]]\nstage = "weather"\npower = "high"\n',
+         r"\[\[stages\]\] #1 \(weather\): power must be a number"),
+        ('[input]\nexample = "rock"\n[[stages]]\nstage = "weather"\npowr = 2\n', r"no option 'powr'"),
+        ('[input]\nfile = "missing.ply"\n[[stages]]\nstage = "curvature"\n', r"\[input\] file: no such file 'missing.ply'"),
+        ('[input]\nexample = "rock"\nsubdivisons = 3\n[[stages]]\nstage = "curvature"\n',
+         r"\[input\] example 'rock': unknown key 'subdivisons'"),
+        ('[input]\nexample = "boulder"\n[[stages]]\nstage = "curvature"\n', r"unknown example 'boulder'"),
+        ('[input]\nexample = "rock"\n', r"\[\[stages\]\]: missing"),
+        ('[[stages]]\nstage = "curvature"\n', r"\[input\]: missing"),
+        ('[input]\nexample = "rock"\n[[stages]]\nstage = "curvature"\n[output]\nformat = "vtp"\n',
+         r"top level: unknown key 'output'"),
+        ('[input]\nexample = "rock"\n[[stages]]\nstage = "weather"\n[sweep]\n"weather.power" = [1.0, 0.5]\n',
+         r"\[sweep\] weather.power = 0.5: .*power must be >= 1.0"),
+        ('[input]\nexample = "rock"\n[[stages]]\nstage = "weather"\n[sweep]\n"erosion.power" = [1.0]\n',
+         r"\[sweep\] 'erosion.power': keys are seed, input.OPTION or STAGE.OPTION"),
+        ('[input]\nexample = "rock"\n[[stages]]\nstage = "materials"\n', r"takes ImageData but gets PolyData"),
+        ('[input]\nexample = "rock"\n[[stages]]\nstage = "curvature"\n[outputs]\nformat = "vti"\n',
+         r"\[outputs\] format: 'vti' cannot hold the final PolyData"),
+        ('[input\nexample = "rock"\n', r"not valid TOML"),
+        ('[input]\nexample = "rock"\n[[stages]]\nstage = "weather"\n[sweep]\n"weather.power" = [2, 2.0]\n',
+         r"jobs 0 and 1 are identical"),
+    ],
+)
+def test_malformed_scenario_fails_before_any_job_starts(tmp_path, text, message):
+    path = _write(tmp_path, text, "bad.toml")
+    with pytest.raises(ScenarioError, match=message) as info:
+        run_batch(path, tmp_path / "out", serial=True, progress=False)
+    assert str(path) in str(info.value)
+    assert not (tmp_path / "out").exists()
+
+
+def test_cli_reports_a_malformed_scenario(tmp_path, capsys):
+    path = _write(tmp_path, '[input]\nexample = "rock"\n[[stages]]\nstage = "wether"\n', "bad.toml")
+    assert main(["batch", str(path), "--out", str(tmp_path / "out"), "--serial"]) == 2
+    assert "unknown stage 'wether'" in capsys.readouterr().err
+
+
+# --- serial runs: resuming, failures, the manifest --------------------------------------------------------
+
+
+def test_serial_batch_writes_every_job_and_a_rerun_skips_them(serial_reference):
+    scenario, out = serial_reference
+    rows = _check_complete(out, 12)
+    for row in rows:
+        mesh = pv.read(out / "jobs" / row["folder"] / "final.vtp")
+        assert row["points"] == mesh.n_points and row["volume"] == pytest.approx(mesh.volume, rel=1e-9)
+        assert row["volume_change"] < 0  # weathering only removes material
+        series = pv.get_reader(out / "jobs" / row["folder"] / "weather.pvd")
+        assert series.time_values == [0.0, 20.0, 40.0, 60.0]
+        log = (out / "jobs" / row["folder"] / "log.txt").read_text()
+        assert "stage weather done" in log and "done in" in log
+    # stronger power modifiers spare flatter regions: less volume is lost
+    by_power = {p: np.mean([r["volume_change"] for r in rows if r["weather.power"] == p]) for p in (1.0, 2.0, 4.0)}
+    assert by_power[1.0] < by_power[2.0] < by_power[4.0]
+    report = run_batch(scenario, out, serial=True, progress=False)
+    assert report.ran == [] and report.skipped == 12 and len(report.rows) == 12
+
+
+@pytest.mark.filterwarnings("ignore:The VTK reader")
+def test_a_failing_job_is_recorded_and_retried_on_the_next_run(tmp_path):
+    pv.Sphere().save(tmp_path / "good.vtp")
+    pv.Cube().triangulate().save(tmp_path / "cube.vtp")
+    (tmp_path / "broken.vtp").write_text("not a mesh")
+    path = _write(tmp_path, '[input]\nfile = "good.vtp"\n[[stages]]\nstage = "curvature"\n'
+                            '[sweep]\n"input.file" = ["good.vtp", "broken.vtp", "cube.vtp"]\n')
+    report = run_batch(path, tmp_path / "out", serial=True, progress=False)
+    assert [r["status"] for r in report.rows] == ["done", "failed", "done"] and report.failed == 1
+    assert report.rows[1]["error"]
+    failed = tmp_path / "out" / "jobs" / f"{report.rows[1]['folder']}.failed"
+    assert "job failed" in (failed / "log.txt").read_text()
+    pv.Sphere(radius=2.0).save(tmp_path / "broken.vtp")  # fix the input: the job runs again, now successfully
+    again = run_batch(path, tmp_path / "out", serial=True, progress=False)
+    assert again.ran == [report.rows[1]["id"]] and again.failed == 0
+    assert not failed.exists()
+
+
+def test_a_result_the_manifest_missed_is_recovered_not_recomputed(serial_reference, tmp_path):
+    scenario, reference = serial_reference
+    out = tmp_path / "out"
+    out.mkdir()
+    # a batch stopped after job 3's folder was renamed into place but before the manifest was updated
+    job = load_scenario(scenario).jobs[3]
+    (out / "jobs").mkdir()
+    shutil.copytree(reference / "jobs" / job.folder, out / "jobs" / job.folder)
+    (out / "jobs" / f".tmp-{job.folder}-half").mkdir()  # and a half-written attempt of another
+    report = run_batch(scenario, out, serial=True, progress=False)
+    assert report.skipped == 1 and job.id not in report.ran and len(report.ran) == 11
+    _check_complete(out, 12)
+    assert _outputs(out) == _outputs(reference)
+
+
+def test_a_second_batch_into_the_same_folder_is_refused(tmp_path):
+    path = _write(tmp_path, '[input]\nexample = "cube"\n[[stages]]\nstage = "curvature"\n')
+    with _exclusive(tmp_path / "out"), pytest.raises(RuntimeError, match="another batch is running"):
+        run_batch(path, tmp_path / "out", serial=True, progress=False)
+
+
+# --- Dask ------------------------------------------------------------------------------------------------
+
+
+def test_local_cluster_outputs_equal_the_serial_run_bit_for_bit(serial_reference, tmp_path):
+    scenario, reference = serial_reference
+    report = run_batch(scenario, tmp_path / "out", workers=2, progress=False)
+    assert report.workers == 2 and len(report.ran) == 12
+    rows = _check_complete(tmp_path / "out", 12)
+    assert len({r["worker"] for r in rows}) == 2  # both workers took jobs
+    assert _outputs(tmp_path / "out") == _outputs(reference)
+
+
+def test_a_worker_killed_mid_sweep_loses_nothing(serial_reference, tmp_path):
+    from distributed import Client, LocalCluster
+
+    scenario, reference = serial_reference
+    killed = []
+
+    def kill_a_busy_worker(row, client):
+        if killed:
+            return
+        busy = [w for w, keys in client.processing().items() if keys]
+        if busy:
+            pid = client.run(os.getpid, workers=busy[:1])[busy[0]]
+            os.kill(pid, signal.SIGKILL)
+            killed.append(pid)
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                      silence_logs=50) as cluster, Client(cluster) as client:
+        report = run_batch(scenario, tmp_path / "out", client=client, progress=False,
+                           on_result=kill_a_busy_worker)
+    assert killed, "no worker was busy to kill"
+    assert report.failed == 0
+    _check_complete(tmp_path / "out", 12)
+    assert _outputs(tmp_path / "out") == _outputs(reference)
+
+
+def test_rerun_after_a_forced_stop_finishes_only_the_missing_jobs(serial_reference, tmp_path):
+    scenario, reference = serial_reference
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "pverosion.cli", "batch", str(scenario), "--out", str(out), "--workers", "2"]
+    proc = subprocess.Popen(command, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    done: set[str] = set()
+    try:
+        deadline = time.monotonic() + 240
+        while time.monotonic() < deadline and proc.poll() is None:
+            try:
+                entries = json.loads((out / "manifest.json").read_text())["jobs"]
+            except (FileNotFoundError, json.JSONDecodeError, KeyError):
+                entries = {}
+            done = {k for k, e in entries.items() if e["status"] == "done"}
+            if len(done) >= 3:
+                break
+            time.sleep(0.05)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    assert 3 <= len(done) < 12, f"the batch was not stopped mid-way ({len(done)} jobs done)"
+    report = run_batch(scenario, out, workers=2, progress=False)
+    assert not done & set(report.ran)  # jobs recorded before the stop did not run again
+    assert report.skipped >= len(done) and report.skipped + len(report.ran) == 12
+    _check_complete(out, 12)
+    assert _outputs(out) == _outputs(reference)
