@@ -28,6 +28,8 @@ from pverosion.io import atomic_path
 
 __all__ = ["BatchReport", "run_batch"]
 
+_SPAWN_ENVIRON = "distributed.nanny.pre-spawn-environ"
+
 
 @dataclass
 class BatchReport:
@@ -195,9 +197,14 @@ def _client(*, scheduler: str | None, workers: int | None):
         with Client(scheduler) as client:
             yield client
         return
+    import dask
+
     n = workers or os.cpu_count() or 1
-    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+    # Dask sets MALLOC_TRIM_THRESHOLD_ in its workers, which also pins glibc's mmap threshold: every
+    # array above 128 KiB is then mapped and unmapped afresh, and a weathering job runs ~30 % slower.
+    with dask.config.set({f"{_SPAWN_ENVIRON}.MALLOC_TRIM_THRESHOLD_": None}), \
+            LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                         silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
         yield client
 
 
