@@ -144,6 +144,18 @@ def test_cli_reports_a_malformed_scenario(tmp_path, capsys):
     assert "unknown stage 'wether'" in capsys.readouterr().err
 
 
+@pytest.mark.filterwarnings("ignore:The VTK reader")
+def test_cli_exit_status_tells_whether_every_job_succeeded(tmp_path, capsys):
+    pv.Sphere().save(tmp_path / "ball.vtp")
+    (tmp_path / "broken.vtp").write_text("not a mesh")
+    good = _write(tmp_path, '[input]\nfile = "ball.vtp"\n[[stages]]\nstage = "curvature"\n', "good.toml")
+    assert main(["batch", str(good), "--out", str(tmp_path / "good"), "--serial"]) == 0
+    assert "1 ran, 0 already done, 0 failed" in capsys.readouterr().out
+    bad = _write(tmp_path, '[input]\nfile = "broken.vtp"\n[[stages]]\nstage = "curvature"\n', "bad.toml")
+    assert main(["batch", str(bad), "--out", str(tmp_path / "bad"), "--serial"]) == 1
+    assert "failed:" in capsys.readouterr().err
+
+
 # --- serial runs: resuming, failures, the manifest --------------------------------------------------------
 
 
