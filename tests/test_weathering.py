@@ -108,7 +108,7 @@ def test_outputs_and_statistics_are_independent_of_thread_count():
         numba.set_num_threads(before)
     one, many = runs
     assert np.array_equal(one.points, many.points)
-    for name in one.field_data.keys():  # volume, area, curvature statistics per step
+    for name in one.field_data:  # volume, area, curvature statistics per step
         assert np.array_equal(one.field_data[name], many.field_data[name]), name
 
 

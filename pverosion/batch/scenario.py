@@ -40,16 +40,21 @@ import inspect
 import itertools
 import json
 import os
-import tomllib
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # Python 3.10: the same parser, from PyPI
+    import tomli as tomllib
 
 from pverosion.examples import EXAMPLES
 from pverosion.filters import ALL_FILTERS
 from pverosion.filters.base import ErosionFilter, Param
 
-__all__ = ["IMAGE_SUFFIXES", "Job", "Scenario", "ScenarioError", "STAGES", "load_scenario", "parse_scenario"]
+__all__ = ["IMAGE_SUFFIXES", "STAGES", "Job", "Scenario", "ScenarioError", "load_scenario", "parse_scenario"]
 
 STAGES: dict[str, type[ErosionFilter]] = {cls.COMMAND or cls.__name__.lower(): cls for cls in ALL_FILTERS}
 """Stages a scenario may use, by CLI command name."""
