@@ -1,12 +1,12 @@
 """Batch overhead: a 12-job sweep on a 2-worker Dask LocalCluster against the same jobs run serially.
 
-Weathers procedural rocks (three power modifiers x four seeds) with outputs
-every 50 steps. Each repeat runs the sweep serially in this process (numba on
-all cores) and on a fresh 2-worker LocalCluster (one numba thread per worker),
-each into a new folder; cluster start-up and warm-up are timed apart and
-excluded from the ratio. Prints JSON; the target is ratio <= 1.1.
+Runs pipelines/batch_rocks.toml: four procedural rocks (10,242 vertices) x three
+power modifiers, 150 weathering steps, curvature, outputs every 50 steps. Each
+repeat runs the sweep serially in this process (numba on all cores) and on a
+fresh 2-worker LocalCluster (one numba thread per worker), each into a new
+folder; cluster start-up and warm-up are timed apart and excluded from the ratio. Prints JSON; the target is ratio <= 1.1.
 
-Usage: python benchmarks/bench_batch.py [--repeat 3] [--subdivisions 5] [--iterations 100]
+Usage: python benchmarks/bench_batch.py [--repeat 3]
 """
 
 from __future__ import annotations
@@ -19,34 +19,17 @@ import tempfile
 import time
 from pathlib import Path
 
-from pverosion.batch import parse_scenario, run_batch
+from pverosion.batch import load_scenario, run_batch
 from pverosion.batch.job import warm_up
 
-SCENARIO = """
-name = "bench"
-[input]
-example = "rock"
-subdivisions = {subdivisions}
-[[stages]]
-stage = "weather"
-iterations = {iterations}
-[[stages]]
-stage = "curvature"
-[sweep]
-"weather.power" = [1.0, 2.0, 4.0]
-"input.seed" = [1, 2, 3, 4]
-[outputs]
-save_every = 50
-"""
+SCENARIO = Path(__file__).resolve().parents[1] / "pipelines" / "batch_rocks.toml"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--subdivisions", type=int, default=5)
-    parser.add_argument("--iterations", type=int, default=100)
     args = parser.parse_args()
-    scenario = parse_scenario(SCENARIO.format(subdivisions=args.subdivisions, iterations=args.iterations))
+    scenario = load_scenario(SCENARIO)
     warm_up()
     serial, cluster, startup = [], [], []
     with tempfile.TemporaryDirectory() as folder:
@@ -62,8 +45,7 @@ def main() -> None:
     ratios = [c / s for c, s in zip(cluster, serial)]
     print(json.dumps({
         "jobs": len(scenario.jobs),
-        "rock_vertices": 10 * 4 ** args.subdivisions + 2,
-        "iterations": args.iterations,
+        "scenario": SCENARIO.name,
         "cores": os.cpu_count(),
         "serial_s": [round(t, 3) for t in serial],
         "cluster_2_workers_s": [round(t, 3) for t in cluster],
