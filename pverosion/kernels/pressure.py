@@ -271,6 +271,16 @@ def pressure_solve(
     if rhs.shape != types.shape:
         raise ValueError(f"rhs has shape {rhs.shape} but types has shape {types.shape}")
     liquid = types == LIQUID
+    if not liquid.any():
+        return np.zeros(types.shape), PoissonSolve(0, 0.0, True)
+    # solve on the liquid's bounding box grown by one cell: it holds every neighbour of a liquid cell
+    box = tuple(slice(max(int(idx.min()) - 1, 0), int(idx.max()) + 2) for idx in np.nonzero(liquid))
+    if any(b.stop - b.start < n for b, n in zip(box, types.shape)):
+        q = np.zeros(types.shape)
+        q[box], info = pressure_solve(np.ascontiguousarray(rhs[box]), types[box],
+                                      guess=None if guess is None else np.ascontiguousarray(guess[box]),
+                                      tolerance=tolerance, max_iterations=max_iterations)
+        return q, info
     x = np.zeros(types.shape) if guess is None else np.where(liquid, guess, 0.0)
     b = np.where(liquid, rhs, 0.0)
     hierarchy = _Hierarchy(types)
