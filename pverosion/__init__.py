@@ -6,7 +6,7 @@ a PyVista accessor (``mesh.erosion.curvature()``), the ``pverosion`` command lin
 and ParaView plugins.
 """
 
-from pverosion.api import curvature, materials_from_volume, sample_materials, weather
+from pverosion.api import curvature, materials_from_volume, sample_materials, voxel_erosion, weather
 from pverosion.kernels.validation import InvalidMeshError
 from pverosion.plotting import CURVATURE_CMAP, curvature_cmap
 
@@ -22,5 +22,6 @@ __all__ = [
     "curvature_cmap",
     "materials_from_volume",
     "sample_materials",
+    "voxel_erosion",
     "weather",
 ]

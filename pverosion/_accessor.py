@@ -29,3 +29,7 @@ class ErosionAccessor:
     def materials(self, thresholds, **options):
         """BSP material field built from this image volume; see :func:`pverosion.materials_from_volume`."""
         return api.materials_from_volume(self._dataset, thresholds, **options)
+
+    def voxel(self, **options) -> pv.MultiBlock:
+        """Voxel hydraulic erosion of this voxel grid; see :func:`pverosion.voxel_erosion`."""
+        return api.voxel_erosion(self._dataset, **options)

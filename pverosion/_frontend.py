@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import pyvista as pv
-from vtkmodules.vtkCommonDataModel import vtkPolyData
+from vtkmodules.vtkCommonDataModel import vtkImageData, vtkPolyData
 
 from pverosion.filters.base import ErosionFilter
 from pverosion.kernels.validation import InvalidMeshError
@@ -24,6 +24,8 @@ def apply_filter(filter_cls: type[ErosionFilter], mesh, **options: Any) -> pv.Da
     if filter_cls.INPUT_TYPE == "vtkPolyData" and not isinstance(mesh, vtkPolyData):
         hint = " (call .extract_surface() first)" if isinstance(mesh, pv.DataSet) else ""
         raise TypeError(f"{filter_cls.__name__} needs a PolyData surface{hint}; got {type(mesh).__name__}")
+    if filter_cls.INPUT_TYPE == "vtkImageData" and not isinstance(mesh, vtkImageData):
+        raise TypeError(f"{filter_cls.__name__} needs an ImageData volume; got {type(mesh).__name__}")
     if isinstance(mesh, vtkPolyData) and mesh.GetNumberOfPoints() == 0:
         raise InvalidMeshError("mesh is empty: it has no points")
     return pv.wrap(filter_cls(**options).run(mesh))

@@ -8,6 +8,7 @@ import pyvista as pv
 from pverosion._frontend import apply_filter
 from pverosion.filters.curvature import Curvature
 from pverosion.filters.materials import MaterialSampler
+from pverosion.filters.voxel import VoxelErosion
 from pverosion.filters.weathering import Weathering
 from pverosion.kernels.bsp import BSPTree
 from pverosion.kernels.materials import (
@@ -18,7 +19,7 @@ from pverosion.kernels.materials import (
 )
 from pverosion.kernels.weathering import Erodibility
 
-__all__ = ["curvature", "materials_from_volume", "sample_materials", "weather"]
+__all__ = ["curvature", "materials_from_volume", "sample_materials", "voxel_erosion", "weather"]
 
 
 def curvature(mesh: pv.PolyData, *, orientation: str = "outward", normalization: str = "none") -> pv.PolyData:
@@ -219,3 +220,40 @@ def sample_materials(
         tree = BSPTree.from_json(field)
         field = BSPMaterials(tree, np.arange(1.0, tree.leaf.max() + 2.0))
     return pv.wrap(MaterialSampler(field=field, association=association).run(grid))
+
+
+def voxel_erosion(grid: pv.ImageData, *, iterations: int = 100, time_step: float = 0.01, model: str = "cohesive",
+                  source_velocity=(0.0, 0.0, 0.0), **options) -> pv.MultiBlock:
+    """Voxel hydraulic erosion (Beneš et al. 2006) of a voxel grid.
+
+    Parameters
+    ----------
+    grid : pyvista.ImageData
+        A voxel grid (``material_amount``, optional ``water``, ``source``,
+        ``drain``, ``hardness``, ``material_id`` point arrays); build one with
+        :func:`pverosion.filters.voxel.voxel_grid_from_mesh`,
+        ``voxel_grid_from_height_field`` or ``voxel_grid_from_volume``. Not modified.
+    iterations : int, default: 100
+        Time steps.
+    time_step : float, default: 0.01
+        Seconds per step.
+    model : {"cohesive", "cohesionless"}, default: "cohesive"
+    source_velocity : (3,) float, default: (0, 0, 0)
+        Velocity of the water entering at source voxels (m/s).
+    **options
+        Other options of :class:`pverosion.filters.VoxelErosion` (``friction``,
+        ``erosion_rate``, ``tau_erosion``, ``saturation``, ``viscosity``,
+        ``extraction``, ...).
+
+    Returns
+    -------
+    pyvista.MultiBlock
+        ``state`` (the grid with ``voxel_class``, ``material_amount``,
+        ``water``, ``dissolved``, ``velocity``, ``pressure`` and per-step
+        statistics) and ``surface`` (the material's closed isosurface with
+        ``material_id``).
+    """
+    velocity = ",".join(repr(float(v)) for v in np.asarray(source_velocity, dtype=float).reshape(3))
+    return apply_filter(VoxelErosion, grid, iterations=iterations, time_step=time_step, model=model,
+                        source_velocity=velocity, **options)
+

@@ -55,7 +55,8 @@ def build_parser() -> argparse.ArgumentParser:
                              formatter_class=argparse.RawDescriptionHelpFormatter)
         if filter_cls.INPUT_TYPE == "vtkImageData":
             cmd.add_argument("input", type=Path, help="input volume (any image format PyVista reads: VTI, MHD, ...)")
-            cmd.add_argument("-o", "--output", type=Path, required=True, help="output image (.vti)")
+            output = ".vtm, a MultiBlock" if filter_cls.OUTPUT_TYPE == "vtkMultiBlockDataSet" else ".vti"
+            cmd.add_argument("-o", "--output", type=Path, required=True, help=f"output ({output})")
             cmd.add_argument("--screenshot", type=Path, help="also plot the three middle slices to this PNG")
         else:
             cmd.add_argument("input", type=Path,
@@ -123,6 +124,8 @@ def _run_stage(args: argparse.Namespace) -> None:
 
         if filter_cls.OUTPUT_TYPE == "vtkImageData":
             plot_slices(result, args.screenshot)
+        elif filter_cls.OUTPUT_TYPE == "vtkMultiBlockDataSet":  # voxel erosion: slices of the state
+            plot_slices(result["state"], args.screenshot, scalars="voxel_class")
         else:
             render_scalars(result, args.screenshot)
         print(f"screenshot -> {args.screenshot}")

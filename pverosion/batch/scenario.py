@@ -62,8 +62,9 @@ STAGES: dict[str, type[ErosionFilter]] = {cls.COMMAND or cls.__name__.lower(): c
 IMAGE_SUFFIXES = (".vti", ".mhd", ".mha", ".nrrd", ".nhdr")
 """File suffixes read as volumes (ImageData); anything else is read as a surface."""
 
-MESH_FORMATS = ("vtp", "vtk", "ply", "stl", "obj")
-IMAGE_FORMATS = ("vti",)
+FORMATS = {"vtkPolyData": ("vtp", "vtk", "ply", "stl", "obj"), "vtkImageData": ("vti",),
+           "vtkMultiBlockDataSet": ("vtm",)}
+"""Formats of the final output, by its data type (the first is the default)."""
 _TOP_KEYS = ("name", "description", "seed", "input", "stages", "sweep", "outputs")
 _OUTPUT_DEFAULTS = {"format": "", "save_every": 0, "screenshot": False}
 
@@ -274,7 +275,7 @@ def _job(doc: dict, stages: list, labels: list, swept: dict, *, index: int, base
     given = _table(doc, "outputs", "[outputs]")
     _unknown(given, tuple(_OUTPUT_DEFAULTS), "[outputs]")
     outputs.update(given)
-    formats = IMAGE_FORMATS if kind == "vtkImageData" else MESH_FORMATS
+    formats = FORMATS[kind]
     fmt = outputs["format"] or formats[0]
     if fmt not in formats:
         raise ScenarioError(f"[outputs] format: {fmt!r} cannot hold the final {kind[3:]} (one of {', '.join(formats)})")

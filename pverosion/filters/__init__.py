@@ -7,9 +7,11 @@ generated from it, so a new stage is exposed by adding its class here.
 from pverosion.filters.base import ErosionFilter, Param
 from pverosion.filters.curvature import Curvature
 from pverosion.filters.materials import MaterialSampler, MaterialsFromVolume
+from pverosion.filters.voxel import VoxelErosion
 from pverosion.filters.weathering import Weathering
 
-ALL_FILTERS: tuple[type[ErosionFilter], ...] = (Curvature, Weathering, MaterialsFromVolume, MaterialSampler)
+ALL_FILTERS: tuple[type[ErosionFilter], ...] = (Curvature, Weathering, MaterialsFromVolume, MaterialSampler,
+                                                VoxelErosion)
 
 __all__ = [
     "ALL_FILTERS",
@@ -18,5 +20,6 @@ __all__ = [
     "MaterialSampler",
     "MaterialsFromVolume",
     "Param",
+    "VoxelErosion",
     "Weathering",
 ]

@@ -19,12 +19,14 @@ from vtkmodules.util import numpy_support
 from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
 from vtkmodules.vtkCommonCore import vtkIdTypeArray, vtkObject, vtkStringArray
 from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline as SDDP
 
 from pverosion.kernels.validation import InvalidMeshError
 
 __all__ = [
     "ErosionFilter",
     "Param",
+    "TimeSteppedFilter",
     "output_times",
     "polydata_triangles",
     "replace_triangles",
@@ -283,6 +285,40 @@ def output_times(iterations: int, save_every: int | None) -> list[int]:
     if not save_every:
         return [iterations]
     return sorted(set(range(0, iterations + 1, save_every)) | {iterations})
+
+
+class TimeSteppedFilter(ErosionFilter):
+    """An iterative stage: publishes TIME_STEPS 0..iterations (time n = step n).
+
+    Subclasses need an ``iterations`` option; :meth:`requested_step` tells
+    :meth:`execute` which step the pipeline asked for (the last when no time
+    was requested).
+    """
+
+    TIME_DEPENDENT = True
+
+    def __init__(self, **options):
+        super().__init__(**options)
+        self._time: float | None = None
+
+    def RequestInformation(self, request, in_info, out_info):
+        """Publish the time steps 0..iterations."""
+        n = self.get_option("iterations")
+        info = out_info.GetInformationObject(0)
+        info.Set(SDDP.TIME_STEPS(), [float(t) for t in range(n + 1)], n + 1)
+        info.Set(SDDP.TIME_RANGE(), [0.0, float(n)], 2)
+        return 1
+
+    def RequestData(self, request, in_info, out_info):
+        """Read the requested time, then run :meth:`execute`."""
+        info = out_info.GetInformationObject(0)
+        self._time = info.Get(SDDP.UPDATE_TIME_STEP()) if info.Has(SDDP.UPDATE_TIME_STEP()) else None
+        return super().RequestData(request, in_info, out_info)
+
+    def requested_step(self) -> int:
+        """The step the pipeline asked for, rounded and clamped to 0..iterations."""
+        n = self.get_option("iterations")
+        return n if self._time is None else round(min(max(self._time, 0.0), float(n)))
 
 
 def _make_setter(name):

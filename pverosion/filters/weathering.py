@@ -5,11 +5,10 @@ from __future__ import annotations
 import numpy as np
 from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonCore import vtkPoints
-from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline as SDDP
 
 from pverosion.filters.base import (
-    ErosionFilter,
     Param,
+    TimeSteppedFilter,
     polydata_triangles,
     replace_triangles,
     set_field_value,
@@ -58,7 +57,7 @@ def weathering_output(solver: WeatheringSolver, source, out) -> None:
     set_field_value(out, "frozen_vertices", solver.frozen)
 
 
-class Weathering(ErosionFilter):
+class Weathering(TimeSteppedFilter):
     """Curvature-driven weathering (Skorkovská et al. 2019, §3.3).
 
     Convex vertices move along the unit uniform Laplacian by
@@ -78,7 +77,6 @@ class Weathering(ErosionFilter):
 
     LABEL = "Weathering (curvature-driven)"
     COMMAND = "weather"
-    TIME_DEPENDENT = True
     PARAMS = (
         Param("iterations", 100, "Number of weathering steps (time steps 0..iterations).", minimum=0),
         Param("power", 1.0, "Power modifier n >= 1 of the curvature (eq. 5): larger spares flat regions.",
@@ -99,26 +97,11 @@ class Weathering(ErosionFilter):
         self._erodibility = erodibility
         self._solver: WeatheringSolver | None = None
         self._key: tuple | None = None
-        self._time: float | None = None
 
     def set_erodibility(self, erodibility: Erodibility) -> None:
         """Per-vertex array (V,) or callable of points (N, 3) -> (N,); None for uniform."""
         self._erodibility = erodibility
         self.Modified()
-
-    def RequestInformation(self, request, in_info, out_info):
-        """Publish the time steps 0..iterations."""
-        n = self.get_option("iterations")
-        info = out_info.GetInformationObject(0)
-        info.Set(SDDP.TIME_STEPS(), [float(t) for t in range(n + 1)], n + 1)
-        info.Set(SDDP.TIME_RANGE(), [0.0, float(n)], 2)
-        return 1
-
-    def RequestData(self, request, in_info, out_info):
-        """Read the requested time, then run :meth:`execute`."""
-        info = out_info.GetInformationObject(0)
-        self._time = info.Get(SDDP.UPDATE_TIME_STEP()) if info.Has(SDDP.UPDATE_TIME_STEP()) else None
-        return super().RequestData(request, in_info, out_info)
 
     def _erodibility_for(self, inp):
         name = self.get_option("erodibility_array")
@@ -134,8 +117,7 @@ class Weathering(ErosionFilter):
 
     def execute(self, inp, out) -> None:
         """Advance (or restart) the cached solver to the requested step and fill ``out``."""
-        n = self.get_option("iterations")
-        step = n if self._time is None else int(round(min(max(self._time, 0.0), float(n))))
+        step = self.requested_step()
         key = (inp.GetMTime(), self.GetMTime())
         if self._solver is None or self._key != key or self._solver.step_count > step:
             points, faces = polydata_triangles(inp)

@@ -1,0 +1,128 @@
+"""Voxel grids, surface extraction, the VoxelErosion filter and its front ends."""
+
+import numpy as np
+import pytest
+import pyvista as pv
+
+import pverosion
+from pverosion.cli import main
+from pverosion.examples import load_torus
+from pverosion.filters import VoxelErosion
+from pverosion.filters.voxel import (
+    extract_material_surface,
+    voxel_grid,
+    voxel_grid_from_height_field,
+    voxel_grid_from_mesh,
+    voxel_grid_from_volume,
+)
+from pverosion.kernels.geometry import signed_volume
+
+
+def _meander_grid(n=(40, 20, 16)):
+    amount = np.zeros(n)
+    amount[:, :, :8] = 1.0
+    x = np.arange(n[0])[:, None]
+    y = np.arange(n[1])[None, :]
+    channel = np.abs(y - (n[1] / 2 + 3 * np.sin(2 * np.pi * x / n[0]))) < 4
+    for k in range(4, 8):
+        amount[:, :, k][channel] = 0.0
+    water = np.zeros(n)
+    water[:, :, 4:7] = channel[:, :, None]
+    source = np.zeros(n, bool)
+    source[1:3, :, 4:7] = channel[1:3, :, None]
+    drain = np.zeros(n, bool)
+    drain[-3:-1, :, 4:7] = channel[-3:-1, :, None]
+    grid = voxel_grid(amount, spacing=0.05, water=water, source=source, drain=drain)
+    grid["material_id"] = (1 + (grid.points[:, 2] > 0.2)).astype(np.int32)  # two layers
+    return grid
+
+
+def test_voxelised_torus_has_the_analytic_volume():
+    grid = voxel_grid_from_mesh(load_torus(n_major=120, n_minor=60), spacing=0.05)
+    volume = grid["material_amount"].sum() * 0.05**3
+    assert volume == pytest.approx(2 * np.pi**2 * 3.0 * 1.0**2, rel=0.01)
+    assert grid["material_amount"].reshape(grid.dimensions, order="F")[0].sum() == 0  # the padding is empty
+
+
+def test_height_field_columns_hold_the_terrain_height():
+    x, y = np.meshgrid(np.arange(12), np.arange(9), indexing="ij")
+    heights = 1.0 + 0.3 * np.sin(x / 3.0) * np.cos(y / 4.0)
+    grid = voxel_grid_from_height_field(heights, spacing=0.1)
+    amount = grid["material_amount"].reshape(grid.dimensions, order="F")
+    bottom = grid.origin[2] - 0.05
+    assert np.allclose(bottom + amount.sum(axis=2) * 0.1, heights)
+    image = pv.ImageData(dimensions=(12, 9, 1), spacing=(0.1, 0.1, 1.0))
+    image["elevation"] = heights.ravel(order="F")
+    from_image = voxel_grid_from_height_field(image, spacing=0.1)
+    assert np.allclose(from_image["material_amount"], grid["material_amount"])
+
+
+def test_volume_threshold_and_cubic_voxels():
+    image = pv.ImageData(dimensions=(8, 8, 8), spacing=(0.5, 0.5, 0.5))
+    image["v"] = image.points[:, 2]
+    grid = voxel_grid_from_volume(image, threshold=1.0)
+    assert np.array_equal(grid["material_amount"] > 0, image["v"] >= 1.0)
+    image.spacing = (0.5, 0.5, 1.0)
+    with pytest.raises(ValueError, match="cubic"):
+        voxel_grid_from_volume(image, threshold=1.0)
+
+
+@pytest.mark.parametrize("method", ["flying_edges", "marching_cubes"])
+def test_extracted_surfaces_are_closed_outward_and_agree(method):
+    grid = _meander_grid()
+    surface = extract_material_surface(grid, method=method)
+    assert surface.n_open_edges == 0 and surface.is_manifold
+    reference = extract_material_surface(grid, method="flying_edges")
+    volume = signed_volume(np.asarray(surface.points, dtype=float), surface.regular_faces)
+    assert volume > 0  # outward
+    # flying edges writes float32 points
+    assert volume == pytest.approx(signed_volume(np.asarray(reference.points, dtype=float), reference.regular_faces),
+                                   rel=1e-6)
+    assert set(np.unique(surface["material_id"])) == {1, 2}
+    with pytest.raises(ValueError, match="method must be one of"):
+        extract_material_surface(grid, method="dual_contouring")
+
+
+def test_filter_steps_continue_from_the_cache_and_conserve_material():
+    grid = _meander_grid()
+    before = grid.copy(deep=True)
+    alg = VoxelErosion(iterations=6, source_velocity="1.5,0,0")
+    stepped = pv.wrap(alg.run_time(grid, 3))
+    stepped = pv.wrap(alg.run_time(grid, 6))
+    direct = pv.wrap(VoxelErosion(iterations=6, source_velocity="1.5,0,0").run(grid))
+    for name in ("material_amount", "water", "dissolved", "velocity"):
+        assert np.array_equal(stepped["state"][name], direct["state"][name]), name
+    state = direct["state"]
+    assert state.field_data["mass_error"][0] <= 1e-9
+    assert len(state.field_data["voxel_eroded"]) == 7 and state.field_data["voxel_eroded"].sum() > 0
+    assert set(np.unique(state["voxel_class"])) == {0, 1, 2}
+    assert grid == before  # the input is not modified
+
+
+def test_bad_grids_and_options_are_named():
+    grid = _meander_grid()
+    with pytest.raises(ValueError, match="material_amount"):
+        VoxelErosion(iterations=1).run(pv.ImageData(dimensions=(4, 4, 4)))
+    with pytest.raises(ValueError, match="source_velocity needs three numbers"):
+        VoxelErosion(iterations=1, source_velocity="1,0").run(grid)
+    odd = grid.copy()
+    odd.spacing = (0.05, 0.05, 0.1)
+    with pytest.raises(ValueError, match="cubic voxels"):
+        VoxelErosion(iterations=1).run(odd)
+    with pytest.raises(ValueError, match="model must be one of"):
+        VoxelErosion(model="sticky")
+    with pytest.raises(TypeError, match="ImageData"):
+        pverosion.voxel_erosion(pv.Sphere())
+
+
+def test_function_accessor_and_cli_agree(tmp_path):
+    grid = _meander_grid()
+    out = pverosion.voxel_erosion(grid, iterations=3, source_velocity=(1.5, 0, 0))
+    via_accessor = grid.erosion.voxel(iterations=3, source_velocity=(1.5, 0, 0))
+    assert np.array_equal(out["state"]["material_amount"], via_accessor["state"]["material_amount"])
+    grid.save(tmp_path / "grid.vti")
+    assert main(["voxel", str(tmp_path / "grid.vti"), "-o", str(tmp_path / "out.vtm"), "--iterations", "3",
+                 "--source-velocity", "1.5,0,0", "--save-every", "1"]) == 0
+    saved = pv.read(tmp_path / "out.vtm")
+    assert np.array_equal(saved["state"]["material_amount"], out["state"]["material_amount"])
+    assert pv.get_reader(tmp_path / "out.pvd").time_values == [0.0, 1.0, 2.0, 3.0]
