@@ -26,6 +26,7 @@ round-off: solid + dissolved stays constant apart from what drains remove.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -411,6 +412,7 @@ class VoxelErosionSolver:
         fluid = self.fluid
         info = fluid.step(dt)
         self.drained_material += info.drained_material
+        start = time.perf_counter()
         speed = np.linalg.norm(cell_velocity(fluid.u, fluid.v, fluid.w), axis=-1)
         liquid = fluid.types == LIQUID
         figures = erosion_step(self.params, liquid=liquid, amount=self.amount, erodibility=self.erodibility,
@@ -419,6 +421,7 @@ class VoxelErosionSolver:
         opened = fluid.solid & ~solid
         fluid.water[opened] = 0.0  # eroded away: an empty cell the water flows into
         fluid.solid = solid
+        fluid.profile["erosion"] = fluid.profile.get("erosion", 0.0) + time.perf_counter() - start
         self.step_count += 1
         figures.update(substeps=info.substeps, iterations=info.iterations, divergence=info.divergence,
                        max_speed=info.max_speed, inflow=info.inflow, outflow=info.outflow,

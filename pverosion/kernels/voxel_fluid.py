@@ -30,6 +30,7 @@ leave the free surface, time step and solver open, so these are our choices):
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -456,6 +457,8 @@ class VoxelFluid:
         self.extrapolation_layers = int(extrapolation_layers)
         self.time = 0.0
         self.last_dt = 0.0
+        self.profile: dict[str, float] = {}
+        """Seconds spent so far in advection (with forces and walls), projection and transport."""
 
     def _mask(self, mask, name: str) -> np.ndarray:
         if mask is None:
@@ -499,6 +502,7 @@ class VoxelFluid:
     def _substep(self, dt: float, info: FluidStep) -> None:
         h = self.spacing
         c = dt / h
+        clock = time.perf_counter()
         self.u, self.v, self.w = _advect_velocity(self.u, self.v, self.w, c)
         self.w -= self.gravity * dt
         if self.viscosity > 0.0:
@@ -509,6 +513,7 @@ class VoxelFluid:
                                           _diffuse(self.w, alpha / n))
         self._set_source_velocity()
         _close_walls(self.u, self.v, self.w, self.solid)
+        clock = self._lap("advection", clock)
         types = _cell_types(self.solid, self.water, LIQUID_FRACTION)
         div = divergence(self.u, self.v, self.w, types)
         self.q, solve = pressure_solve(-div, types, guess=self.q, tolerance=self.tolerance / c)
@@ -516,6 +521,7 @@ class VoxelFluid:
         info.divergence = solve.residual * c
         valid = (np.zeros(self.u.shape, bool), np.zeros(self.v.shape, bool), np.zeros(self.w.shape, bool))
         _subtract_gradient(self.u, self.v, self.w, self.q, types, *valid)
+        clock = self._lap("projection", clock)
         for a, ok in zip((self.u, self.v, self.w), valid):
             _extrapolate(a, ok, self.extrapolation_layers)
         _close_walls(self.u, self.v, self.w, self.solid)
@@ -531,8 +537,14 @@ class VoxelFluid:
             info.drained_material += float(self.material[self.drain].sum())
             self.water[self.drain] = 0.0
             self.material[self.drain] = 0.0
+        self._lap("transport", clock)
         self.last_dt = dt
         info.substeps += 1
+
+    def _lap(self, name: str, start: float) -> float:
+        now = time.perf_counter()
+        self.profile[name] = self.profile.get(name, 0.0) + now - start
+        return now
 
     def _set_source_velocity(self) -> None:
         if not self.source.any():
