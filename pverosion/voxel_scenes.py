@@ -85,9 +85,10 @@ def meander_grid(shape=(128, 64, 64), *, spacing: float = 0.05, depth: int = 10,
 def bank_erosion(before: np.ndarray, after: np.ndarray, meander: Meander, *, bend: float = 0.5) -> dict[str, float]:
     """Material removed from the outer and inner banks of a meander's bends (voxel volumes).
 
-    A voxel at (x, y) is on the outer bank when it lies on the side of the
-    centre line away from the centre of curvature, and in a bend when
-    ``|y''(x)|`` is at least ``bend`` times its largest value.
+    Bank voxels are those outside the channel's original width (the bed is
+    not counted). A voxel at (x, y) is on the outer bank when it lies on the
+    side of the centre line away from the centre of curvature, and in a bend
+    when ``|y''(x)|`` is at least ``bend`` times its largest value.
 
     Parameters
     ----------
@@ -105,9 +106,10 @@ def bank_erosion(before: np.ndarray, after: np.ndarray, meander: Meander, *, ben
     y = np.arange(lost.shape[1])[None, :].astype(float)
     curvature = meander.bend(x)
     in_bend = np.abs(curvature) >= bend * np.abs(curvature).max()
-    side = (y - meander.centre(x)) * curvature
-    outer = float(lost[(side < 0) & in_bend].sum())
-    inner = float(lost[(side > 0) & in_bend].sum())
+    offset = y - meander.centre(x)
+    bank = in_bend & (np.abs(offset) >= meander.half_width)
+    outer = float(lost[bank & (offset * curvature < 0)].sum())
+    inner = float(lost[bank & (offset * curvature > 0)].sum())
     return {"outer": outer, "inner": inner}
 
 
