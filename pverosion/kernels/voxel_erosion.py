@@ -3,8 +3,9 @@
 Voxel classes follow the slides: MAT cells hold material ``m`` in (0, 1]
 (``amount``), FULL cells hold water (liquid cells of
 :class:`~pverosion.kernels.voxel_fluid.VoxelFluid`) and dissolved material
-``C``, EMPTY cells hold air. Every step exchanges material between each
-liquid cell and its face-adjacent MAT cells:
+``C``, EMPTY cells hold air. Every step exchanges material between each wet
+cell (water fraction at least ``WET_FRACTION``, so thin films running down a
+slope count) and its face-adjacent MAT cells:
 
 - **cohesive** (Langendoen): ``E = e (tau / tau_ce - 1)`` when
   ``tau > tau_ce``, ``D = omega d (1 - tau / tau_cd)`` when ``tau < tau_cd``,
@@ -32,13 +33,14 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from pverosion.kernels.pressure import LIQUID
 from pverosion.kernels.voxel_fluid import VoxelFluid, cell_velocity
 
-__all__ = ["MODELS", "ErosionParameters", "VoxelErosionSolver", "erosion_step"]
+__all__ = ["MODELS", "WET_FRACTION", "ErosionParameters", "VoxelErosionSolver", "erosion_step"]
 
 MODELS = ("cohesive", "cohesionless")
 
+WET_FRACTION = 0.1
+"""Cells holding at least this fraction of water exchange material (films on slopes included)."""
 _NEIGHBOURS = ((-1, 0, 0), (1, 0, 0), (0, -1, 0), (0, 1, 0), (0, 0, -1), (0, 0, 1))
 _BELOW_WEIGHT = 4.0  # deposition onto the MAT cell below counts this many side cells
 
@@ -414,8 +416,8 @@ class VoxelErosionSolver:
         self.drained_material += info.drained_material
         start = time.perf_counter()
         speed = np.linalg.norm(cell_velocity(fluid.u, fluid.v, fluid.w), axis=-1)
-        liquid = fluid.types == LIQUID
-        figures = erosion_step(self.params, liquid=liquid, amount=self.amount, erodibility=self.erodibility,
+        wet = (fluid.water >= WET_FRACTION) & ~fluid.solid
+        figures = erosion_step(self.params, liquid=wet, amount=self.amount, erodibility=self.erodibility,
                                water=fluid.water, load=fluid.material, speed=speed, dt=dt)
         solid = self.amount > 0.0
         opened = fluid.solid & ~solid

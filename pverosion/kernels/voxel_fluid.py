@@ -395,7 +395,8 @@ class VoxelFluid:
         Water density (kg/m³), for the pressure output.
     gravity : float, default: 9.81
     source : numpy.ndarray of bool, optional
-        Inflow cells: refilled with water every substep, their faces set to ``source_velocity``.
+        Inflow cells: refilled with water every substep, their faces set to
+        ``source_velocity`` unless it is zero (then the flow takes the water away).
     source_velocity : (3,) float, default: (0, 0, 0)
     drain : numpy.ndarray of bool, optional
         Outflow cells: emptied of water and dissolved material every substep.
@@ -547,8 +548,8 @@ class VoxelFluid:
         return now
 
     def _set_source_velocity(self) -> None:
-        if not self.source.any():
-            return
+        if not self.source.any() or not self.source_velocity.any():
+            return  # a still source only refills its cells; the flow takes the water away
         su, sv, sw = self.source_velocity
         s = self.source
         self.u[:-1][s] = su
