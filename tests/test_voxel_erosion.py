@@ -3,24 +3,15 @@
 import numpy as np
 import pytest
 
+from pverosion.filters.voxel import _grid_array
 from pverosion.kernels.voxel_erosion import ErosionParameters, VoxelErosionSolver, erosion_step
+from pverosion.voxel_scenes import meander_grid
 
 
-def _channel(n=(40, 20, 16), width=4):
-    amount = np.zeros(n)
-    amount[:, :, :8] = 1.0
-    x = np.arange(n[0])[:, None]
-    y = np.arange(n[1])[None, :]
-    channel = np.abs(y - (n[1] / 2 + 3 * np.sin(2 * np.pi * x / n[0]))) < width
-    for k in range(4, 8):
-        amount[:, :, k][channel] = 0.0
-    water = np.zeros(n)
-    water[:, :, 4:7] = channel[:, :, None]
-    source = np.zeros(n, bool)
-    source[1:3, :, 4:7] = channel[1:3, :, None]
-    drain = np.zeros(n, bool)
-    drain[-3:-1, :, 4:7] = channel[-3:-1, :, None]
-    return amount, water, source, drain
+def _channel():
+    grid, _ = meander_grid((40, 20, 16), spacing=0.05, depth=4, half_width=4.0, amplitude=3.0)
+    return tuple(_grid_array(grid, name) for name in ("material_amount", "water")) + tuple(
+        _grid_array(grid, name) != 0 for name in ("source", "drain"))
 
 
 def test_material_is_conserved_every_step_apart_from_drains():

@@ -10,29 +10,16 @@ from pverosion.examples import load_torus
 from pverosion.filters import VoxelErosion
 from pverosion.filters.voxel import (
     extract_material_surface,
-    voxel_grid,
     voxel_grid_from_height_field,
     voxel_grid_from_mesh,
     voxel_grid_from_volume,
 )
 from pverosion.kernels.geometry import signed_volume
+from pverosion.voxel_scenes import meander_grid
 
 
-def _meander_grid(n=(40, 20, 16)):
-    amount = np.zeros(n)
-    amount[:, :, :8] = 1.0
-    x = np.arange(n[0])[:, None]
-    y = np.arange(n[1])[None, :]
-    channel = np.abs(y - (n[1] / 2 + 3 * np.sin(2 * np.pi * x / n[0]))) < 4
-    for k in range(4, 8):
-        amount[:, :, k][channel] = 0.0
-    water = np.zeros(n)
-    water[:, :, 4:7] = channel[:, :, None]
-    source = np.zeros(n, bool)
-    source[1:3, :, 4:7] = channel[1:3, :, None]
-    drain = np.zeros(n, bool)
-    drain[-3:-1, :, 4:7] = channel[-3:-1, :, None]
-    grid = voxel_grid(amount, spacing=0.05, water=water, source=source, drain=drain)
+def _meander_grid():
+    grid, _ = meander_grid((40, 20, 16), spacing=0.05, depth=4, half_width=4.0, amplitude=3.0)
     grid["material_id"] = (1 + (grid.points[:, 2] > 0.2)).astype(np.int32)  # two layers
     return grid
 

@@ -143,6 +143,7 @@ def _erode(liquid, amount, erodibility, load, ero, dt):
     """Move eroded material from MAT cells into the adjacent liquid cells; return the amount moved."""
     nx, ny, nz = liquid.shape
     ratio = np.zeros((nx, ny, nz))
+    taken = np.zeros((nx, ny, nz))
     for i in prange(nx):  # each MAT cell: what its liquid neighbours ask, limited by what it holds
         for j in range(ny):
             for k in range(nz):
@@ -155,6 +156,7 @@ def _erode(liquid, amount, erodibility, load, ero, dt):
                         demand += ero[p, q, r] * dt * erodibility[i, j, k]
                 if demand > 0.0:
                     ratio[i, j, k] = min(1.0, amount[i, j, k] / demand)
+                    taken[i, j, k] = demand * ratio[i, j, k]
     gained = np.zeros((nx, ny, nz))
     for i in prange(nx):  # each liquid cell: what it received
         for j in range(ny):
@@ -167,18 +169,6 @@ def _erode(liquid, amount, erodibility, load, ero, dt):
                     if _inside(liquid.shape, p, q, r) and ratio[p, q, r] > 0.0:
                         total += ero[i, j, k] * dt * erodibility[p, q, r] * ratio[p, q, r]
                 gained[i, j, k] = total
-    taken = np.zeros((nx, ny, nz))
-    for i in prange(nx):  # each MAT cell: what it gave
-        for j in range(ny):
-            for k in range(nz):
-                if ratio[i, j, k] <= 0.0:
-                    continue
-                total = 0.0
-                for di, dj, dk in _NEIGHBOURS:
-                    p, q, r = i + di, j + dj, k + dk
-                    if _inside(liquid.shape, p, q, r) and liquid[p, q, r]:
-                        total += ero[p, q, r] * dt * erodibility[i, j, k] * ratio[i, j, k]
-                taken[i, j, k] = total
     for i in prange(nx):
         for j in range(ny):
             for k in range(nz):
@@ -214,6 +204,7 @@ def _deposit(liquid, amount, load, dep, dt):
                     wanted[i, j, k] = min(dep[i, j, k] * dt, load[i, j, k])
                     weight_sum[i, j, k] = total
     accept = np.zeros((nx, ny, nz))
+    received = np.zeros((nx, ny, nz))
     for i in prange(nx):  # each MAT cell: accepted fraction of what comes in
         for j in range(ny):
             for k in range(nz):
@@ -226,6 +217,7 @@ def _deposit(liquid, amount, load, dep, dt):
                         incoming += wanted[p, q, r] * _weight(amount, shape, i, j, k, -dk) / weight_sum[p, q, r]
                 if incoming > 0.0:
                     accept[i, j, k] = min(1.0, (1.0 - amount[i, j, k]) / incoming)
+                    received[i, j, k] = incoming * accept[i, j, k]
     sent = np.zeros((nx, ny, nz))
     for i in prange(nx):
         for j in range(ny):
@@ -239,19 +231,6 @@ def _deposit(liquid, amount, load, dep, dt):
                     if w > 0.0:
                         total += wanted[i, j, k] * w / weight_sum[i, j, k] * accept[p, q, r]
                 sent[i, j, k] = total
-    received = np.zeros((nx, ny, nz))
-    for i in prange(nx):
-        for j in range(ny):
-            for k in range(nz):
-                if accept[i, j, k] <= 0.0:
-                    continue
-                total = 0.0
-                for di, dj, dk in _NEIGHBOURS:
-                    p, q, r = i + di, j + dj, k + dk
-                    if _inside(shape, p, q, r) and wanted[p, q, r] > 0.0:
-                        total += wanted[p, q, r] * _weight(amount, shape, i, j, k, -dk) / weight_sum[p, q, r] \
-                            * accept[i, j, k]
-                received[i, j, k] = total
     for i in prange(nx):
         for j in range(ny):
             for k in range(nz):
