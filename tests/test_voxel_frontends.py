@@ -113,3 +113,21 @@ def test_function_accessor_and_cli_agree(tmp_path):
     saved = pv.read(tmp_path / "out.vtm")
     assert np.array_equal(saved["state"]["material_amount"], out["state"]["material_amount"])
     assert pv.get_reader(tmp_path / "out.pvd").time_values == [0.0, 1.0, 2.0, 3.0]
+
+
+def test_saint_helens_dem_becomes_a_closed_terrain_block():
+    from conftest import DATA
+
+    path = DATA / "SainteHelens.dem"
+    if not path.exists():
+        pytest.skip(f"real data not found at {path}")
+    dem = pv.read(path)
+    grid = voxel_grid_from_height_field(dem, spacing=120.0, air=240.0)
+    amount = np.asarray(grid["material_amount"]).reshape(grid.dimensions, order="F")
+    heights = grid.origin[2] - 60.0 + amount.sum(axis=2) * 120.0
+    elevation = np.asarray(dem.active_scalars)
+    assert heights.max() == pytest.approx(elevation.max(), abs=120.0)   # the summit, resampled
+    assert heights.min() == pytest.approx(elevation.min(), abs=120.0)
+    assert np.all(amount[:, :, -2:] == 0)                                # air above the summit
+    surface = extract_material_surface(grid)
+    assert surface.n_open_edges == 0 and surface.is_manifold
