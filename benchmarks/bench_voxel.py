@@ -20,15 +20,8 @@ import time
 import numpy as np
 import pyvista as pv
 
-from pverosion.filters.voxel import _grid_array, extract_material_surface
-from pverosion.kernels.voxel_erosion import VoxelErosionSolver
+from pverosion.filters.voxel import extract_material_surface, voxel_grid, voxel_solver
 from pverosion.voxel_scenes import meander_grid
-
-
-def _solver(grid) -> VoxelErosionSolver:
-    return VoxelErosionSolver(_grid_array(grid, "material_amount"), _grid_array(grid, "water"), spacing=0.05,
-                              source=_grid_array(grid, "source") != 0, drain=_grid_array(grid, "drain") != 0,
-                              source_velocity=(1.0, 0.0, 0.0))
 
 
 def main() -> None:
@@ -38,7 +31,7 @@ def main() -> None:
     parser.add_argument("--time-step", type=float, default=0.01)
     args = parser.parse_args()
     grid, _ = meander_grid((128, 64, 64))
-    solver = _solver(grid)
+    solver = voxel_solver(grid, source_velocity=(1.0, 0.0, 0.0))
     for _ in range(5):  # warm-up: compile, let the flow start
         solver.step(args.time_step)
     parts = {name: [] for name in ("advection", "projection", "transport", "erosion", "extraction", "total")}
@@ -47,8 +40,7 @@ def main() -> None:
         before = dict(solver.fluid.profile)
         start = time.perf_counter()
         figures = solver.step(args.time_step)
-        state = pv.ImageData(dimensions=grid.dimensions, spacing=grid.spacing, origin=grid.origin)
-        state.point_data["material_amount"] = solver.amount.ravel(order="F")
+        state = voxel_grid(solver.amount, origin=grid.origin, spacing=grid.spacing[0])
         clock = time.perf_counter()
         extract_material_surface(state)
         parts["extraction"].append(time.perf_counter() - clock)

@@ -23,19 +23,19 @@ from pverosion.plotting import plot_slices, render_strip
 from pverosion.voxel_scenes import bank_erosion, hill_wash_grid, meander_grid, spring_grid
 
 SCENES = {
-    # grid builder (full size, small size), options of the VoxelErosion filter
-    "meander": (lambda small: meander_grid((64, 32, 32) if small else (128, 64, 64))[0],
+    # builder of (grid, meander shape or None) at full or small size, options of the VoxelErosion filter
+    "meander": (lambda small: meander_grid((64, 32, 32) if small else (128, 64, 64)),
                 {"source_velocity": "1.5,0,0"}),
-    "hill": (lambda small: hill_wash_grid((40, 32, 28) if small else (64, 48, 40)),
+    "hill": (lambda small: (hill_wash_grid((40, 32, 28) if small else (64, 48, 40)), None),
              {"model": "cohesionless", "capacity": 0.7}),
-    "spring": (lambda small: spring_grid((40, 32, 28) if small else (64, 48, 40)),
+    "spring": (lambda small: (spring_grid((40, 32, 28) if small else (64, 48, 40)), None),
                {"source_velocity": "1.5,0,0"}),
 }
 
 
 def run_scene(name: str, out: Path, *, steps: int, save_every: int, small: bool) -> None:
     build, options = SCENES[name]
-    grid = build(small)
+    grid, meander = build(small)
     alg = VoxelErosion(iterations=steps, **options)
     series = TimeSeriesWriter(out / f"{name}.pvd")
     surfaces, labels = [], []
@@ -54,9 +54,8 @@ def run_scene(name: str, out: Path, *, steps: int, save_every: int, small: bool)
     lost = float(grid["material_amount"].sum() - state["material_amount"].sum())
     print(f"{name}: {steps} steps, {lost:.2f} voxels of material moved, mass error "
           f"{state.field_data['mass_error'][0]:.1e}")
-    if name == "meander":
+    if meander is not None:
         shape = tuple(grid.dimensions)
-        _, meander = meander_grid(shape)
         banks = bank_erosion(np.asarray(grid["material_amount"]).reshape(shape, order="F"),
                              np.asarray(state["material_amount"]).reshape(shape, order="F"), meander)
         print(f"  banks in the bends: outer {banks['outer']:.3f}, inner {banks['inner']:.3f} voxels lost")

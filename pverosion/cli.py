@@ -17,10 +17,6 @@ from pverosion.filters.base import ErosionFilter
 __all__ = ["build_parser", "main"]
 
 
-def _command_name(filter_cls: type[ErosionFilter]) -> str:
-    return filter_cls.COMMAND or filter_cls.__name__.lower()
-
-
 def _add_filter_options(parser: argparse.ArgumentParser, filter_cls: type[ErosionFilter]) -> None:
     for p in filter_cls.PARAMS:
         flag = "--" + p.name.replace("_", "-")
@@ -51,7 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="numba threads per job (default: cores / workers locally, 1 on a remote scheduler)")
     batch.add_argument("--serial", action="store_true", help="run the jobs one by one in this process, without Dask")
     for filter_cls in ALL_FILTERS:
-        cmd = sub.add_parser(_command_name(filter_cls), help=filter_cls.LABEL, description=filter_cls.__doc__,
+        cmd = sub.add_parser(filter_cls.command_name(), help=filter_cls.LABEL, description=filter_cls.__doc__,
                              formatter_class=argparse.RawDescriptionHelpFormatter)
         if filter_cls.INPUT_TYPE == "vtkImageData":
             cmd.add_argument("input", type=Path, help="input volume (any image format PyVista reads: VTI, MHD, ...)")
@@ -89,7 +85,7 @@ def _run_time_stage(filter_cls: type[ErosionFilter], mesh, options: dict, args: 
     series = None
     if args.save_every:
         series = TimeSeriesWriter(args.series or args.output.with_suffix(".pvd"))
-    with tqdm(total=n, desc=_command_name(filter_cls), unit="step") as bar:
+    with tqdm(total=n, desc=filter_cls.command_name(), unit="step") as bar:
         def advance(t: float) -> None:
             bar.update(max(int(t) - bar.n, 0))
 
@@ -118,7 +114,7 @@ def _run_stage(args: argparse.Namespace) -> None:
         result = apply_filter(filter_cls, mesh, **options)
     elapsed = time.perf_counter() - start
     write_atomic(result, args.output)
-    print(f"{_command_name(filter_cls)}: {mesh.n_points} points, {mesh.n_cells} cells in {elapsed:.3f} s -> {args.output}")
+    print(f"{filter_cls.command_name()}: {mesh.n_points} points, {mesh.n_cells} cells in {elapsed:.3f} s -> {args.output}")
     if args.screenshot:
         from pverosion.plotting import plot_slices, render_scalars
 

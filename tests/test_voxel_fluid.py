@@ -82,18 +82,23 @@ def test_dam_break_conserves_water_and_projects_to_the_tolerance():
     fluid = VoxelFluid(solid, water, spacing=0.1, tolerance=1e-6)
     volume = fluid.water.sum()
     moved = False
+    checked = 0
     for _ in range(120):
+        types = fluid.types  # the cells the projection of a one-substep step solves for
         info = fluid.step(0.02)
         assert info.divergence <= 1e-6
-        # the divergence of the final field, recomputed independently of the solver's residual
-        div = divergence(fluid.u, fluid.v, fluid.w, fluid.types)
+        if info.substeps == 1:
+            # recomputed from the faces, independently of the solver's residual: extrapolation and
+            # transport after the projection leave the faces of those liquid cells as projected
+            div = divergence(fluid.u, fluid.v, fluid.w, types)
+            assert np.abs(div).max() * 0.02 / fluid.spacing <= 1e-6
+            checked += 1
         moved |= info.max_speed > 0.5
-    assert moved
+    assert moved and checked > 60
     assert abs(fluid.water.sum() - volume) <= 1e-9 * volume
     assert fluid.water.min() >= -1e-12 and np.all(fluid.water[fluid.solid] == 0.0)
     # the water spreads over the basin floor
     assert fluid.water[12:, :, 2].mean() > 0.5
-    assert np.abs(div).max() * 0.02 / fluid.spacing < 1.0
 
 
 def test_sources_add_and_drains_remove_counted_water():

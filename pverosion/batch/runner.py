@@ -201,7 +201,7 @@ def _client(*, scheduler: str | None, workers: int | None):
 
     n = workers or os.cpu_count() or 1
     # Dask sets MALLOC_TRIM_THRESHOLD_ in its workers, which also pins glibc's mmap threshold: every
-    # array above 128 KiB is then mapped and unmapped afresh, and a weathering job runs ~30 % slower.
+    # array above 128 KiB is then mapped and unmapped afresh, which slows array-heavy jobs (bench_batch.py).
     with dask.config.set({f"{_SPAWN_ENVIRON}.MALLOC_TRIM_THRESHOLD_": None}), \
             LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
                          silence_logs=logging.ERROR) as cluster, Client(cluster) as client:

@@ -56,7 +56,7 @@ from pverosion.filters.base import ErosionFilter, Param
 
 __all__ = ["IMAGE_SUFFIXES", "STAGES", "Job", "Scenario", "ScenarioError", "load_scenario", "parse_scenario"]
 
-STAGES: dict[str, type[ErosionFilter]] = {cls.COMMAND or cls.__name__.lower(): cls for cls in ALL_FILTERS}
+STAGES: dict[str, type[ErosionFilter]] = {cls.command_name(): cls for cls in ALL_FILTERS}
 """Stages a scenario may use, by CLI command name."""
 
 IMAGE_SUFFIXES = (".vti", ".mhd", ".mha", ".nrrd", ".nhdr")

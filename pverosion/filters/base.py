@@ -141,6 +141,11 @@ class ErosionFilter(VTKPythonAlgorithmBase):
             self.set_option(name, value)
 
     @classmethod
+    def command_name(cls) -> str:
+        """Name of the stage on the command line and in batch scenarios (``COMMAND`` or the lower-case class name)."""
+        return cls.COMMAND or cls.__name__.lower()
+
+    @classmethod
     def param(cls, name: str) -> Param:
         """The :class:`Param` called ``name``; ``TypeError`` naming the known options otherwise."""
         for p in cls.PARAMS:

@@ -35,6 +35,7 @@ __all__ = [
     "voxel_grid_from_height_field",
     "voxel_grid_from_mesh",
     "voxel_grid_from_volume",
+    "voxel_solver",
 ]
 
 EXTRACTORS = ("flying_edges", "marching_cubes")
@@ -260,6 +261,41 @@ def extract_material_surface(image, *, method: str = "flying_edges", iso: float 
     return surface
 
 
+def voxel_solver(grid, *, params: ErosionParameters | None = None, source_velocity=(0.0, 0.0, 0.0),
+                 **fluid_options) -> VoxelErosionSolver:
+    """A :class:`~pverosion.kernels.voxel_erosion.VoxelErosionSolver` for a voxel grid ImageData.
+
+    Parameters
+    ----------
+    grid : vtkImageData
+        Voxel grid (cubic voxels; ``material_amount`` and the optional arrays of this module).
+    params : ErosionParameters, optional
+    source_velocity : (3,) float, default: (0, 0, 0)
+    **fluid_options
+        ``viscosity``, ``tolerance``, ``cfl``, ... of :class:`~pverosion.kernels.voxel_fluid.VoxelFluid`.
+
+    Raises
+    ------
+    ValueError
+        Non-cubic voxels, a missing ``material_amount``, bad ``hardness`` or ``source_velocity``.
+    """
+    spacing = np.array(grid.GetSpacing())
+    if not (np.isclose(spacing[0], spacing[1]) and np.isclose(spacing[0], spacing[2])):
+        raise ValueError(f"voxel erosion needs cubic voxels; the grid's spacing is {tuple(spacing)}")
+    velocity = np.asarray(source_velocity, dtype=np.float64).ravel()
+    if velocity.shape != (3,):
+        raise ValueError(f"source_velocity needs three numbers x,y,z; got {velocity.size}")
+    hardness = _grid_array(grid, "hardness", default=1.0)
+    if np.any(hardness <= 0) or not np.all(np.isfinite(hardness)):
+        raise ValueError("hardness must be finite and > 0 everywhere")
+    return VoxelErosionSolver(
+        _grid_array(grid, "material_amount", required=True), _grid_array(grid, "water"),
+        spacing=float(spacing[0]), erodibility=1.0 / hardness, params=params,
+        source=_grid_array(grid, "source") != 0, source_velocity=velocity, drain=_grid_array(grid, "drain") != 0,
+        **fluid_options,
+    )
+
+
 class VoxelErosion(TimeSteppedFilter):
     """Voxel hydraulic erosion (Beneš et al. 2006): water flow eroding and depositing material.
 
@@ -308,24 +344,12 @@ class VoxelErosion(TimeSteppedFilter):
         self._stats: dict[str, list[float]] = {}
 
     def _new_solver(self, inp) -> VoxelErosionSolver:
-        spacing = np.array(inp.GetSpacing())
-        if not (np.isclose(spacing[0], spacing[1]) and np.isclose(spacing[0], spacing[2])):
-            raise ValueError(f"voxel erosion needs cubic voxels; the grid's spacing is {tuple(spacing)}")
         velocity = parse_numbers(self.get_option("source_velocity"), "source_velocity")
-        if len(velocity) != 3:
-            raise ValueError(f"source_velocity needs three numbers x,y,z; got {len(velocity)}")
-        hardness = _grid_array(inp, "hardness", default=1.0)
-        if np.any(hardness <= 0) or not np.all(np.isfinite(hardness)):
-            raise ValueError("hardness must be finite and > 0 everywhere")
         params = ErosionParameters(**{name: self.get_option(name) for name in (
             "model", "friction", "erosion_rate", "deposition_rate", "fall_velocity", "tau_erosion", "tau_deposition",
             "capacity", "saturation", "time_scale")})
-        return VoxelErosionSolver(
-            _grid_array(inp, "material_amount", required=True), _grid_array(inp, "water"),
-            spacing=float(spacing[0]), erodibility=1.0 / hardness, params=params,
-            source=_grid_array(inp, "source") != 0, source_velocity=velocity, drain=_grid_array(inp, "drain") != 0,
-            viscosity=self.get_option("viscosity"), tolerance=self.get_option("tolerance"),
-        )
+        return voxel_solver(inp, params=params, source_velocity=velocity, viscosity=self.get_option("viscosity"),
+                            tolerance=self.get_option("tolerance"))
 
     def _record(self, solver: VoxelErosionSolver, figures: dict) -> None:
         values = {"solid": float(solver.amount.sum()), "dissolved": float(solver.fluid.material.sum()),
