@@ -25,7 +25,7 @@ from pverosion.voxel_scenes import bank_erosion, hill_wash_grid, meander_grid, s
 SCENES = {
     # builder of (grid, meander shape or None) at full or small size, options of the VoxelErosion filter
     "meander": (lambda small: meander_grid((64, 32, 32) if small else (128, 64, 64)),
-                {"source_velocity": "1.5,0,0"}),
+                {"source_velocity": "1,0,0", "advection": "maccormack"}),
     "hill": (lambda small: (hill_wash_grid((40, 32, 28) if small else (64, 48, 40)), None),
              {"model": "cohesionless", "capacity": 0.7}),
     "spring": (lambda small: (spring_grid((40, 32, 28) if small else (64, 48, 40)), None),

@@ -242,7 +242,7 @@ def voxel_erosion(grid: pv.ImageData, *, iterations: int = 100, time_step: float
         Velocity of the water entering at source voxels (m/s).
     **options
         Other options of :class:`pverosion.filters.VoxelErosion` (``friction``,
-        ``erosion_rate``, ``tau_erosion``, ``saturation``, ``viscosity``,
+        ``erosion_rate``, ``tau_erosion``, ``saturation``, ``viscosity``, ``advection``,
         ``extraction``, ...).
 
     Returns

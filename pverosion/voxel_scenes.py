@@ -14,28 +14,44 @@ __all__ = ["Meander", "bank_erosion", "hill_wash_grid", "meander_grid", "spring_
 
 @dataclass(frozen=True)
 class Meander:
-    """Shape of a sinuous channel cut into a block: centre ``y = y0 + amplitude sin(2 pi x / wavelength)``.
+    """Shape of a sinuous channel cut into a block, all lengths in voxels.
 
-    All lengths in voxels.
+    The centre line is ``y = y0 + amplitude e(x) sin(2 pi x / wavelength)``,
+    where the envelope ``e`` rises smoothly (smoothstep) from 0 to 1 over the
+    first ``run_in`` voxels, so the water enters along a straight reach.
     """
 
     y0: float
     amplitude: float
     wavelength: float
     half_width: float
+    run_in: float = 0.0
+
+    def _envelope(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """e(x) and its first two derivatives."""
+        x = np.asarray(x, dtype=float)
+        if self.run_in <= 0.0:
+            return np.ones_like(x), np.zeros_like(x), np.zeros_like(x)
+        t = np.clip(x / self.run_in, 0.0, 1.0)
+        ramp = (x > 0.0) & (x < self.run_in)
+        return (t * t * (3.0 - 2.0 * t), np.where(ramp, 6.0 * t * (1.0 - t) / self.run_in, 0.0),
+                np.where(ramp, (6.0 - 12.0 * t) / self.run_in**2, 0.0))
 
     def centre(self, x: np.ndarray) -> np.ndarray:
         """Channel centre line y(x)."""
-        return self.y0 + self.amplitude * np.sin(2 * np.pi * x / self.wavelength)
+        return self.y0 + self.amplitude * self._envelope(x)[0] * np.sin(2 * np.pi * np.asarray(x) / self.wavelength)
 
     def bend(self, x: np.ndarray) -> np.ndarray:
         """y''(x): the centre of curvature lies on the side of its sign."""
         k = 2 * np.pi / self.wavelength
-        return -self.amplitude * k * k * np.sin(k * x)
+        e, de, dde = self._envelope(x)
+        s, c = np.sin(k * np.asarray(x)), np.cos(k * np.asarray(x))
+        return self.amplitude * (dde * s + 2.0 * de * k * c - e * k * k * s)
 
 
-def meander_grid(shape=(128, 64, 64), *, spacing: float = 0.05, depth: int = 10, half_width: float = 6.0,
-                 amplitude: float | None = None, water_depth: int | None = None) -> tuple[pv.ImageData, Meander]:
+def meander_grid(shape=(128, 64, 64), *, spacing: float = 0.05, depth: int = 10, half_width: float = 4.0,
+                 amplitude: float | None = None, wavelength: float | None = None,
+                 water_depth: int | None = None) -> tuple[pv.ImageData, Meander]:
     """A block of material with a sinuous channel, water in it, an inflow at x = 0 and a drain at the far end.
 
     Parameters
@@ -46,10 +62,14 @@ def meander_grid(shape=(128, 64, 64), *, spacing: float = 0.05, depth: int = 10,
         Voxel edge (m).
     depth : int, default: 10
         Channel depth (voxels).
-    half_width : float, default: 6
+    half_width : float, default: 4
         Channel half width (voxels).
     amplitude : float, optional
-        Meander amplitude (voxels; default a fifth of the width in y).
+        Meander amplitude (voxels; default an eighth of the grid's width in y).
+    wavelength : float, optional
+        Meander wavelength (voxels; default two thirds of the grid's length).
+        The first half wavelength is a straight run-in that turns smoothly
+        into the meanders.
     water_depth : int, optional
         Initial water depth in the channel (default: depth - 2).
 
@@ -62,8 +82,9 @@ def meander_grid(shape=(128, 64, 64), *, spacing: float = 0.05, depth: int = 10,
     """
     nx, ny, nz = shape
     top = int(0.6 * nz)
-    meander = Meander(y0=ny / 2, amplitude=ny / 5 if amplitude is None else amplitude, wavelength=nx / 1.5,
-                      half_width=half_width)
+    wavelength = nx / 1.5 if wavelength is None else float(wavelength)
+    meander = Meander(y0=ny / 2, amplitude=ny / 8 if amplitude is None else amplitude, wavelength=wavelength,
+                      half_width=half_width, run_in=wavelength / 2)
     x = np.arange(nx)[:, None]
     y = np.arange(ny)[None, :]
     channel = np.abs(y - meander.centre(x)) < half_width

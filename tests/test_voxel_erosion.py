@@ -5,7 +5,7 @@ import pytest
 
 from pverosion.filters.voxel import _grid_array
 from pverosion.kernels.voxel_erosion import ErosionParameters, VoxelErosionSolver, erosion_step
-from pverosion.voxel_scenes import meander_grid
+from pverosion.voxel_scenes import bank_erosion, meander_grid
 
 
 def _channel():
@@ -37,6 +37,18 @@ def test_cohesive_erodes_nothing_below_the_critical_shear_stress():
         figures = solver.step(0.01)
         assert figures["eroded"] == 0.0 and figures["max_speed"] < 3.0
     assert np.array_equal(solver.amount, amount)
+
+
+def test_meander_erodes_its_outer_banks_more_than_its_inner_banks():
+    # the slow test of the suite (about a minute): the bends need room for the flow's inertia to matter
+    grid, meander = meander_grid((128, 64, 32))
+    amount, water, source, drain = (_grid_array(grid, name) for name in ("material_amount", "water", "source", "drain"))
+    solver = VoxelErosionSolver(amount, water, spacing=0.05, source=source != 0, source_velocity=(1.0, 0, 0),
+                                drain=drain != 0, advection="maccormack")
+    for _ in range(400):
+        solver.step(0.01)
+    banks = bank_erosion(amount, solver.amount, meander)
+    assert banks["outer"] > 1.2 * banks["inner"] > 0.0
 
 
 def test_loaded_still_water_deposits_on_the_bed_below():

@@ -24,7 +24,7 @@ from pverosion.filters.materials import grid_points, parse_numbers
 from pverosion.kernels.materials import MaterialField
 from pverosion.kernels.pressure import LIQUID
 from pverosion.kernels.voxel_erosion import MODELS, ErosionParameters, VoxelErosionSolver
-from pverosion.kernels.voxel_fluid import cell_velocity
+from pverosion.kernels.voxel_fluid import ADVECTION_SCHEMES, cell_velocity
 from pverosion.kernels.voxelize import height_field_amount, voxelize_mesh
 
 __all__ = [
@@ -332,6 +332,8 @@ class VoxelErosion(TimeSteppedFilter):
               maximum=1.0),
         Param("time_scale", 1.0, "T, adjustment time of the cohesionless load (s).", minimum=1e-9),
         Param("viscosity", 1e-6, "Kinematic viscosity of the water (m^2/s).", minimum=0.0),
+        Param("advection", "semi-lagrangian", "Velocity advection: semi-lagrangian (fastest) or maccormack "
+              "(keeps the flow's inertia, about twice the advection time).", choices=ADVECTION_SCHEMES),
         Param("source_velocity", "0,0,0", "Velocity of the water at source voxels (m/s), as x,y,z."),
         Param("tolerance", 1e-6, "Projection tolerance on max |div u| dt / h.", minimum=1e-14),
         Param("extraction", "flying_edges", "Isosurface extraction of the material.", choices=EXTRACTORS),
@@ -349,7 +351,7 @@ class VoxelErosion(TimeSteppedFilter):
             "model", "friction", "erosion_rate", "deposition_rate", "fall_velocity", "tau_erosion", "tau_deposition",
             "capacity", "saturation", "time_scale")})
         return voxel_solver(inp, params=params, source_velocity=velocity, viscosity=self.get_option("viscosity"),
-                            tolerance=self.get_option("tolerance"))
+                            tolerance=self.get_option("tolerance"), advection=self.get_option("advection"))
 
     def _record(self, solver: VoxelErosionSolver, figures: dict) -> None:
         values = {"solid": float(solver.amount.sum()), "dissolved": float(solver.fluid.material.sum()),

@@ -14,8 +14,8 @@ leave the free surface, time step and solver open, so these are our choices):
   cell receives beyond ``f = 1`` is pushed up its column, and a liquid
   cell that is not full is topped up from the cell above it (settling keeps
   the smeared surface of donor-cell transport sharp).
-- **Each substep**: semi-Lagrangian advection of the velocities (RK2
-  back-trace, trilinear sampling), gravity, explicit viscosity, inflow
+- **Each substep**: advection of the velocities (semi-Lagrangian with an
+  RK2 back-trace and trilinear sampling, or MacCormack), gravity, explicit viscosity, inflow
   velocities at sources, no-flow walls, pressure projection by MGPCG
   (:mod:`pverosion.kernels.pressure`) until the largest divergence of a
   liquid cell times ``dt / h`` is below ``tolerance`` (the fraction of a
@@ -42,6 +42,7 @@ __all__ = ["FluidStep", "VoxelFluid", "cell_velocity"]
 
 GRAVITY = 9.81
 LIQUID_FRACTION = 0.5
+ADVECTION_SCHEMES = ("semi-lagrangian", "maccormack")
 """Cells holding at least this fraction of water take part in the pressure solve."""
 
 
@@ -110,25 +111,80 @@ def _backtrace(u, v, w, x, y, z, c):
     return x - c * a, y - c * b, z - c * d
 
 
+@njit(cache=True, inline="always")
+def _trilinear_bounds(a, x, y, z):
+    """Smallest and largest of the eight values :func:`_trilinear` blends at (x, y, z)."""
+    nx, ny, nz = a.shape
+    x = min(max(x, 0.0), nx - 1.0)
+    y = min(max(y, 0.0), ny - 1.0)
+    z = min(max(z, 0.0), nz - 1.0)
+    i = min(int(x), nx - 2) if nx > 1 else 0
+    j = min(int(y), ny - 2) if ny > 1 else 0
+    k = min(int(z), nz - 2) if nz > 1 else 0
+    i1, j1, k1 = min(i + 1, nx - 1), min(j + 1, ny - 1), min(k + 1, nz - 1)
+    lo = min(min(min(a[i, j, k], a[i1, j, k]), min(a[i, j1, k], a[i1, j1, k])),
+             min(min(a[i, j, k1], a[i1, j, k1]), min(a[i, j1, k1], a[i1, j1, k1])))
+    hi = max(max(max(a[i, j, k], a[i1, j, k]), max(a[i, j1, k], a[i1, j1, k])),
+             max(max(a[i, j, k1], a[i1, j, k1]), max(a[i, j1, k1], a[i1, j1, k1])))
+    return lo, hi
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
-def _advect_velocity(u, v, w, c):
-    nu, nv, nw = np.empty_like(u), np.empty_like(v), np.empty_like(w)
-    for i in prange(u.shape[0]):
-        for j in range(u.shape[1]):
-            for k in range(u.shape[2]):
-                x, y, z = _backtrace(u, v, w, float(i), j + 0.5, k + 0.5, c)
-                nu[i, j, k] = _trilinear(u, x, y - 0.5, z - 0.5)
-    for i in prange(v.shape[0]):
-        for j in range(v.shape[1]):
-            for k in range(v.shape[2]):
-                x, y, z = _backtrace(u, v, w, i + 0.5, float(j), k + 0.5, c)
-                nv[i, j, k] = _trilinear(v, x - 0.5, y, z - 0.5)
-    for i in prange(w.shape[0]):
-        for j in range(w.shape[1]):
-            for k in range(w.shape[2]):
-                x, y, z = _backtrace(u, v, w, i + 0.5, j + 0.5, float(k), c)
-                nw[i, j, k] = _trilinear(w, x - 0.5, y - 0.5, z)
-    return nu, nv, nw
+def _semi_lagrangian(a, u, v, w, c, ox, oy, oz, bounds, euler):
+    """Advect the face component ``a``, whose sample (i, j, k) sits at (i + ox, j + oy, k + oz).
+
+    The departure point is traced back by RK2, or by one Euler step when
+    ``euler`` (the MacCormack passes, whose correction makes up the order).
+    Returns the advected array and, when ``bounds``, the smallest and largest
+    source values around every departure point (else empty arrays).
+    """
+    out = np.empty_like(a)
+    lo = np.empty_like(a) if bounds else np.empty((0, 0, 0))
+    hi = np.empty_like(a) if bounds else np.empty((0, 0, 0))
+    for i in prange(a.shape[0]):
+        for j in range(a.shape[1]):
+            for k in range(a.shape[2]):
+                if euler:
+                    x, y, z = i + ox, j + oy, k + oz
+                    du, dv, dw = _velocity_at(u, v, w, x, y, z)
+                    x, y, z = x - c * du, y - c * dv, z - c * dw
+                else:
+                    x, y, z = _backtrace(u, v, w, i + ox, j + oy, k + oz, c)
+                out[i, j, k] = _trilinear(a, x - ox, y - oy, z - oz)
+                if bounds:
+                    lo[i, j, k], hi[i, j, k] = _trilinear_bounds(a, x - ox, y - oy, z - oz)
+    return out, lo, hi
+
+
+@njit(cache=True, parallel=True)
+def _maccormack_correct(a, forward, backward, lo, hi):
+    """``forward + (a - backward) / 2`` clamped to [lo, hi], in place of ``forward``."""
+    f = forward.ravel()
+    a, b, lo, hi = a.ravel(), backward.ravel(), lo.ravel(), hi.ravel()
+    for n in prange(f.size):
+        f[n] = min(max(f[n] + 0.5 * (a[n] - b[n]), lo[n]), hi[n])
+
+
+_OFFSETS = ((0.0, 0.5, 0.5), (0.5, 0.0, 0.5), (0.5, 0.5, 0.0))
+
+
+def _advect_velocity(u, v, w, c, maccormack):
+    """Advect the three face components through the current velocities over ``c = dt / h``.
+
+    Semi-Lagrangian (RK2 back-trace, trilinear sampling), or MacCormack: a
+    forward and a backward semi-Lagrangian step (Euler traces) estimate the
+    first one's error, half of which is removed, clamped to the values
+    around the departure point (Selle et al. 2008). It is second order in
+    space and time and far less diffusive than the plain scheme.
+    """
+    out = []
+    for a, (ox, oy, oz) in zip((u, v, w), _OFFSETS):
+        forward, lo, hi = _semi_lagrangian(a, u, v, w, c, ox, oy, oz, maccormack, maccormack)
+        if maccormack:
+            backward = _semi_lagrangian(forward, u, v, w, -c, ox, oy, oz, False, True)[0]
+            _maccormack_correct(a, forward, backward, lo, hi)
+        out.append(forward)
+    return tuple(out)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -405,6 +461,13 @@ class VoxelFluid:
     cfl : float, default: 0.5
         Largest face velocity, in cells per substep.
     extrapolation_layers : int, default: 4
+    advection : {"semi-lagrangian", "maccormack"}, default: "semi-lagrangian"
+        Velocity advection scheme. The plain semi-Lagrangian scheme is the
+        fastest but smears velocities like a viscosity of about ``h u / 4``
+        (at h = 5 cm and 1 m/s ten thousand times water's), which makes
+        channel flow creep and keeps its fastest water on the inside of
+        bends. MacCormack costs about twice the advection time and keeps the
+        flow's inertia: a meander's fastest water swings to its outer banks.
     """
 
     def __init__(
@@ -422,6 +485,7 @@ class VoxelFluid:
         tolerance: float = 1e-6,
         cfl: float = 0.5,
         extrapolation_layers: int = 4,
+        advection: str = "semi-lagrangian",
     ):
         solid = np.asarray(solid, dtype=bool)
         if solid.ndim != 3:
@@ -438,6 +502,9 @@ class VoxelFluid:
                 raise ValueError(f"{name} must be >= 0; got {value!r}")
         if cfl == 0.0 or tolerance == 0.0:
             raise ValueError("cfl and tolerance must be > 0")
+        if advection not in ADVECTION_SCHEMES:
+            raise ValueError(f"advection must be one of {ADVECTION_SCHEMES}; got {advection!r}")
+        self.advection = advection
         self.solid = solid.copy()
         self.water = np.where(solid, 0.0, water)
         self.material = np.zeros_like(self.water)  # dissolved material per cell (cell volumes)
@@ -504,7 +571,7 @@ class VoxelFluid:
         h = self.spacing
         c = dt / h
         clock = time.perf_counter()
-        self.u, self.v, self.w = _advect_velocity(self.u, self.v, self.w, c)
+        self.u, self.v, self.w = _advect_velocity(self.u, self.v, self.w, c, self.advection == "maccormack")
         self.w -= self.gravity * dt
         if self.viscosity > 0.0:
             alpha = self.viscosity * dt / h**2
