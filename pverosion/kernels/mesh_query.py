@@ -1,0 +1,206 @@
+"""Spatial queries on a closed triangle mesh: inside/outside by ray parity, triangles near a box.
+
+Both use uniform bucket grids (CSR arrays) built once per mesh. The parity
+test casts a ray along +z and counts the triangles it crosses; a point on
+the shared edge or vertex of triangles seen from above is claimed by
+exactly one of them (the "top-left" rule of rasterisers), so edges and
+vertices are not counted twice.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+__all__ = ["TriangleIndex", "box_triangles", "point_inside", "segment_crossings"]
+
+
+@dataclass(frozen=True)
+class TriangleIndex:
+    """Bucket grids over a triangle mesh.
+
+    Attributes
+    ----------
+    points : (n_points, 3) float64
+    faces : (n_faces, 3) int64
+    normals : (n_faces, 3) float64
+        Unit face normals (right-hand rule).
+    lo : (3,) float64
+        Lower corner of the grids.
+    size : float
+        Bucket edge (both grids).
+    dims : (3,) int64
+        Buckets along x, y, z.
+    start, items : int64 arrays
+        3-D grid: triangles whose bounding box meets each bucket (x-fastest).
+    start2, items2 : int64 arrays
+        2-D (x, y) grid of the same buckets, for the +z ray.
+    """
+
+    points: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray
+    lo: np.ndarray
+    size: float
+    dims: np.ndarray
+    start: np.ndarray
+    items: np.ndarray
+    start2: np.ndarray
+    items2: np.ndarray
+
+    @classmethod
+    def build(cls, points: np.ndarray, faces: np.ndarray, *, size: float | None = None) -> TriangleIndex:
+        """Index ``faces`` (n, 3) over ``points`` (m, 3); bucket edge defaults to twice the mean edge."""
+        points = np.ascontiguousarray(points, dtype=np.float64)
+        faces = np.ascontiguousarray(faces, dtype=np.int64)
+        tri = points[faces]
+        normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(normals, axis=1, keepdims=True)
+        normals = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
+        lo = points.min(axis=0)
+        extent = np.maximum(points.max(axis=0) - lo, 1e-12)
+        if size is None:
+            edge = np.linalg.norm(tri[:, 1] - tri[:, 0], axis=1).mean() if len(faces) else 1.0
+            size = max(2.0 * float(edge), float(extent.max()) / 256.0)
+        dims = np.maximum(np.ceil(extent / size).astype(np.int64), 1)
+        tlo = np.clip(((tri.min(axis=1) - lo) / size).astype(np.int64), 0, dims - 1)
+        thi = np.clip(((tri.max(axis=1) - lo) / size).astype(np.int64), 0, dims - 1)
+        start, items = _bucket(tlo, thi, dims)
+        d2 = np.array([dims[0], dims[1], 1])
+        start2, items2 = _bucket(tlo * [1, 1, 0], thi * [1, 1, 0], d2)
+        return cls(points, faces, normals, lo, float(size), dims, start, items, start2, items2)
+
+
+@njit(cache=True)
+def _bucket(tlo, thi, dims):
+    counts = np.zeros(dims[0] * dims[1] * dims[2] + 1, np.int64)
+    for t in range(tlo.shape[0]):
+        for k in range(tlo[t, 2], thi[t, 2] + 1):
+            for j in range(tlo[t, 1], thi[t, 1] + 1):
+                for i in range(tlo[t, 0], thi[t, 0] + 1):
+                    counts[1 + i + dims[0] * (j + dims[1] * k)] += 1
+    start = np.cumsum(counts)
+    fill = start[:-1].copy()
+    items = np.empty(start[-1], np.int64)
+    for t in range(tlo.shape[0]):
+        for k in range(tlo[t, 2], thi[t, 2] + 1):
+            for j in range(tlo[t, 1], thi[t, 1] + 1):
+                for i in range(tlo[t, 0], thi[t, 0] + 1):
+                    b = i + dims[0] * (j + dims[1] * k)
+                    items[fill[b]] = t
+                    fill[b] += 1
+    return start, items
+
+
+@njit(cache=True, inline="always")
+def _edge_claims(ax, ay, bx, by, px, py):
+    """Orientation of p against edge a->b, with ties broken by the top-left rule (CCW triangle)."""
+    w = (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+    if w != 0.0:
+        return w > 0.0
+    return (by < ay) or (by == ay and bx > ax)
+
+
+@njit(cache=True)
+def point_inside(p, points, faces, lo, size, dims, start2, items2):
+    """True when ``p`` is inside the closed mesh (parity of the +z ray's crossings)."""
+    i = int((p[0] - lo[0]) / size)
+    j = int((p[1] - lo[1]) / size)
+    if i < 0 or j < 0 or i >= dims[0] or j >= dims[1] or p[0] < lo[0] or p[1] < lo[1]:
+        return False
+    b = i + dims[0] * j
+    inside = False
+    for q in range(start2[b], start2[b + 1]):
+        t = items2[q]
+        a, bb, c = faces[t, 0], faces[t, 1], faces[t, 2]
+        ax, ay, az = points[a, 0], points[a, 1], points[a, 2]
+        bx, by, bz = points[bb, 0], points[bb, 1], points[bb, 2]
+        cx, cy, cz = points[c, 0], points[c, 1], points[c, 2]
+        area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+        if area == 0.0:
+            continue
+        if area < 0.0:  # seen from below: walk it the other way
+            bx, by, bz, cx, cy, cz = cx, cy, cz, bx, by, bz
+            area = -area
+        if not (_edge_claims(ax, ay, bx, by, p[0], p[1]) and _edge_claims(bx, by, cx, cy, p[0], p[1])
+                and _edge_claims(cx, cy, ax, ay, p[0], p[1])):
+            continue
+        wa = (bx - p[0]) * (cy - p[1]) - (by - p[1]) * (cx - p[0])  # barycentric weights times area
+        wb = (cx - p[0]) * (ay - p[1]) - (cy - p[1]) * (ax - p[0])
+        z = (wa * az + wb * bz + (area - wa - wb) * cz) / area
+        if z > p[2]:
+            inside = not inside
+    return inside
+
+
+@njit(cache=True)
+def box_triangles(lo_box, hi_box, points, faces, lo, size, dims, start, items):
+    """Sorted indices of the triangles whose bounding box meets the box [lo_box, hi_box]."""
+    i0 = max(int((lo_box[0] - lo[0]) / size), 0)
+    j0 = max(int((lo_box[1] - lo[1]) / size), 0)
+    k0 = max(int((lo_box[2] - lo[2]) / size), 0)
+    i1 = min(int((hi_box[0] - lo[0]) / size), dims[0] - 1)
+    j1 = min(int((hi_box[1] - lo[1]) / size), dims[1] - 1)
+    k1 = min(int((hi_box[2] - lo[2]) / size), dims[2] - 1)
+    n = 0
+    for k in range(k0, k1 + 1):
+        for j in range(j0, j1 + 1):
+            for i in range(i0, i1 + 1):
+                b = i + dims[0] * (j + dims[1] * k)
+                n += start[b + 1] - start[b]
+    found = np.empty(n, np.int64)
+    n = 0
+    for k in range(k0, k1 + 1):
+        for j in range(j0, j1 + 1):
+            for i in range(i0, i1 + 1):
+                b = i + dims[0] * (j + dims[1] * k)
+                for q in range(start[b], start[b + 1]):
+                    found[n] = items[q]
+                    n += 1
+    found = np.unique(found)
+    keep = np.ones(found.size, np.bool_)
+    for q in range(found.size):
+        t = found[q]
+        for a in range(3):
+            tmin = min(points[faces[t, 0], a], min(points[faces[t, 1], a], points[faces[t, 2], a]))
+            tmax = max(points[faces[t, 0], a], max(points[faces[t, 1], a], points[faces[t, 2], a]))
+            if tmax < lo_box[a] or tmin > hi_box[a]:
+                keep[q] = False
+    return found[keep]
+
+
+@njit(cache=True)
+def segment_crossings(u, w, tris, points, faces, normals, out):
+    """Parameters in (0, 1) where segment u->w (3-tuples) crosses the triangles ``tris``.
+
+    They are written sorted into ``out`` (at least ``tris.size`` long); returns their number.
+    """
+    n = 0
+    for q in range(tris.size):
+        t = tris[q]
+        a = faces[t, 0]
+        nx, ny, nz = normals[t, 0], normals[t, 1], normals[t, 2]
+        su = nx * (u[0] - points[a, 0]) + ny * (u[1] - points[a, 1]) + nz * (u[2] - points[a, 2])
+        sw = nx * (w[0] - points[a, 0]) + ny * (w[1] - points[a, 1]) + nz * (w[2] - points[a, 2])
+        if (su <= 0.0) == (sw <= 0.0):
+            continue
+        s = su / (su - sw)
+        x0, x1, x2 = u[0] + s * (w[0] - u[0]), u[1] + s * (w[1] - u[1]), u[2] + s * (w[2] - u[2])
+        ok = True
+        for m in range(3):
+            i, j = faces[t, m], faces[t, (m + 1) % 3]
+            ex, ey, ez = points[j, 0] - points[i, 0], points[j, 1] - points[i, 1], points[j, 2] - points[i, 2]
+            rx, ry, rz = x0 - points[i, 0], x1 - points[i, 1], x2 - points[i, 2]
+            if (ey * rz - ez * ry) * nx + (ez * rx - ex * rz) * ny + (ex * ry - ey * rx) * nz < 0.0:
+                ok = False
+                break
+        if ok:
+            k = n  # insertion sort: a segment crosses few triangles
+            while k > 0 and out[k - 1] > s:
+                out[k] = out[k - 1]
+                k -= 1
+            out[k] = s
+            n += 1
+    return n
