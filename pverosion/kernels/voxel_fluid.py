@@ -78,17 +78,25 @@ class FluidStep:
 
 
 @njit(cache=True, inline="always")
-def _trilinear(a, x, y, z):
-    """Sample array ``a`` at fractional index (x, y, z), clamped to its extent."""
-    nx, ny, nz = a.shape
+def _stencil(shape, x, y, z):
+    """Lower and upper indices and fractions of the eight samples around fractional index (x, y, z).
+
+    The position is clamped to the array's extent.
+    """
+    nx, ny, nz = shape
     x = min(max(x, 0.0), nx - 1.0)
     y = min(max(y, 0.0), ny - 1.0)
     z = min(max(z, 0.0), nz - 1.0)
     i = min(int(x), nx - 2) if nx > 1 else 0
     j = min(int(y), ny - 2) if ny > 1 else 0
     k = min(int(z), nz - 2) if nz > 1 else 0
-    fx, fy, fz = x - i, y - j, z - k
-    i1, j1, k1 = min(i + 1, nx - 1), min(j + 1, ny - 1), min(k + 1, nz - 1)
+    return i, j, k, min(i + 1, nx - 1), min(j + 1, ny - 1), min(k + 1, nz - 1), x - i, y - j, z - k
+
+
+@njit(cache=True, inline="always")
+def _trilinear(a, x, y, z):
+    """Sample array ``a`` at fractional index (x, y, z), clamped to its extent."""
+    i, j, k, i1, j1, k1, fx, fy, fz = _stencil(a.shape, x, y, z)
     c00 = a[i, j, k] * (1 - fx) + a[i1, j, k] * fx
     c10 = a[i, j1, k] * (1 - fx) + a[i1, j1, k] * fx
     c01 = a[i, j, k1] * (1 - fx) + a[i1, j, k1] * fx
@@ -114,14 +122,7 @@ def _backtrace(u, v, w, x, y, z, c):
 @njit(cache=True, inline="always")
 def _trilinear_bounds(a, x, y, z):
     """Smallest and largest of the eight values :func:`_trilinear` blends at (x, y, z)."""
-    nx, ny, nz = a.shape
-    x = min(max(x, 0.0), nx - 1.0)
-    y = min(max(y, 0.0), ny - 1.0)
-    z = min(max(z, 0.0), nz - 1.0)
-    i = min(int(x), nx - 2) if nx > 1 else 0
-    j = min(int(y), ny - 2) if ny > 1 else 0
-    k = min(int(z), nz - 2) if nz > 1 else 0
-    i1, j1, k1 = min(i + 1, nx - 1), min(j + 1, ny - 1), min(k + 1, nz - 1)
+    i, j, k, i1, j1, k1, _, _, _ = _stencil(a.shape, x, y, z)
     lo = min(min(min(a[i, j, k], a[i1, j, k]), min(a[i, j1, k], a[i1, j1, k])),
              min(min(a[i, j, k1], a[i1, j, k1]), min(a[i, j1, k1], a[i1, j1, k1])))
     hi = max(max(max(a[i, j, k], a[i1, j, k]), max(a[i, j1, k], a[i1, j1, k])),
