@@ -445,38 +445,33 @@ def build_shards(seeds: np.ndarray, points: np.ndarray, faces: np.ndarray, *, pr
     start, order, dims, size = seed_grid(seeds, lo, hi)
     bound_n, bound_d = _bounding_planes(index.points, margin=1e-7 * float((hi - lo).max()))
     tri_adj = np.where(partner >= 0, partner // 3, -1).reshape(-1, 3)
+    args = (seeds, start, order, dims, size, lo, hi, bound_n, bound_d, index.points, index.faces, index.normals,
+            tri_adj, index.lo, index.size, index.dims, index.start, index.items, index.start2, index.items2)
     n = len(seeds)
     recs, vals, pairs, volume = [], [], [], np.zeros(n)
-    for first in range(0, n, _BATCH):
-        last = min(first + _BATCH, n)
-        rl, rv, pa, pb, pc, nrec, npair, vol, status = _batch(
-            first, last, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, index.points, index.faces, index.normals, tri_adj,
-            index.lo, index.size, index.dims, index.start, index.items, index.start2, index.items2, 1)
+
+    def run(first: int, last: int, capacity: int) -> np.ndarray:
+        """Cells first..last-1; keeps the results of those that fit, returns the status per cell."""
+        rl, rv, pa, pb, pc, nrec, npair, vol, status = _batch(first, last, *args, capacity)
         if (status == 1).any():
             raise RuntimeError(f"a Voronoi cell has more than {MAX_FACES} faces; are seeds nearly coincident?")
         volume[first:last] = vol
         cells = np.arange(first, last)
-        mask = np.arange(RECORDS)[None, :] < nrec[:, None]
+        mask = np.arange(rl.shape[1])[None, :] < nrec[:, None]  # a cell that did not fit has no records
         recs.append(np.stack([np.broadcast_to(cells[:, None], mask.shape)[mask], rl[mask]], axis=1))
         vals.append(rv[mask])
-        pmask = np.arange(PAIRS)[None, :] < npair[:, None]
+        pmask = np.arange(pa.shape[1])[None, :] < npair[:, None]
         pairs.append(np.stack([np.broadcast_to(cells[:, None], pmask.shape)[pmask], pa[pmask], pc[pmask],
                                pb[pmask]], axis=1))
-        for i in cells[status == 2]:  # a cell with more surface pieces than a batch slot holds: alone, bigger
+        return status
+
+    for first in range(0, n, _BATCH):
+        last = min(first + _BATCH, n)
+        status = run(first, last, 1)
+        for i in np.flatnonzero(status == 2) + first:  # more surface pieces than a batch slot holds: alone, bigger
             capacity = 4
-            while True:
-                rl, rv, pa, pb, pc, nrec, npair, vol, state = _batch(
-                    i, i + 1, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, index.points, index.faces,
-                    index.normals, tri_adj, index.lo, index.size, index.dims, index.start, index.items,
-                    index.start2, index.items2, capacity)
-                if state[0] != 2:
-                    break
+            while run(i, i + 1, capacity)[0] == 2:
                 capacity *= 4
-            volume[i] = vol[0]
-            recs.append(np.stack([np.full(nrec[0], i), rl[0, :nrec[0]]], axis=1))
-            vals.append(rv[0, :nrec[0]])
-            pairs.append(np.stack([np.full(npair[0], i), pa[0, :npair[0]], pc[0, :npair[0]], pb[0, :npair[0]]],
-                                  axis=1))
         if progress is not None:
             progress(last - first)
     recs = np.concatenate(recs)
@@ -519,7 +514,7 @@ def _assemble(seeds, volume, recs, vals, pairs, *, n_triangles, box) -> ShardGra
     link_keys = keys[pick]
     c, lb, v = cell[pick], lab[pick], vals[pick]
     interior = lb >= 0
-    link_cells = np.stack([np.where(interior, c, c), np.where(interior, lb, -1)], axis=1)
+    link_cells = np.stack([c, np.where(interior, lb, -1)], axis=1)
     # orient interior links from the lower to the higher cell
     flip = interior & (link_cells[:, 0] > link_cells[:, 1])
     link_cells[flip] = link_cells[flip][:, ::-1]
