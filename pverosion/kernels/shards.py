@@ -69,6 +69,10 @@ class ShardGraph:
         The box the Voronoi cells were computed in.
     cell_seed : (n_cells,) int64
         Index of each cell's seed among the seeds given to :func:`build_shards`.
+    input_seeds : (n_seeds, 3) float64
+        All seeds given to :func:`build_shards` (dropped cells' seeds still shape their neighbours).
+    mesh_points, mesh_faces : (m, 3) float64, (k, 3) int64
+        The closed mesh the cells were clipped to.
     """
 
     seeds: np.ndarray
@@ -84,6 +88,9 @@ class ShardGraph:
     link_neighbours: np.ndarray
     box: tuple[np.ndarray, np.ndarray] = field(repr=False)
     cell_seed: np.ndarray = field(repr=False)
+    input_seeds: np.ndarray = field(repr=False)
+    mesh_points: np.ndarray = field(repr=False)
+    mesh_faces: np.ndarray = field(repr=False)
 
     @property
     def n_cells(self) -> int:
@@ -477,7 +484,9 @@ def build_shards(seeds: np.ndarray, points: np.ndarray, faces: np.ndarray, *, pr
     recs = np.concatenate(recs)
     vals = np.concatenate(vals)
     pairs = np.concatenate(pairs)
-    return _assemble(seeds, volume, recs, vals, pairs, n_triangles=len(index.faces), box=(lo, hi))
+    graph = _assemble(seeds, volume, recs, vals, pairs, n_triangles=len(index.faces), box=(lo, hi))
+    graph.mesh_points, graph.mesh_faces = index.points, index.faces
+    return graph
 
 
 def _bounding_planes(points: np.ndarray, *, directions: int = 64, margin: float) -> tuple[np.ndarray, np.ndarray]:
@@ -543,7 +552,8 @@ def _assemble(seeds, volume, recs, vals, pairs, *, n_triangles, box) -> ShardGra
                       link_triangle=tri.astype(np.int64), link_area=v[:, 0].copy(), link_centroid=v[:, 1:4].copy(),
                       link_normal=normal, cell_start=cell_start, cell_links=cell_links,
                       link_start=link_start, link_neighbours=link_neighbours, box=box,
-                      cell_seed=np.flatnonzero(keep_cell))
+                      cell_seed=np.flatnonzero(keep_cell), input_seeds=seeds, mesh_points=np.empty((0, 3)),
+                      mesh_faces=np.empty((0, 3), np.int64))
 
 
 @njit(cache=True)
