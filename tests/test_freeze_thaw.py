@@ -45,7 +45,7 @@ class _Replay:
         self.g = graph
         self.state = state.copy()
         self.broken = np.zeros(graph.n_links, bool)
-        s0, s1 = _solid_side(graph, self.state != AIR)
+        s0, _s1 = _solid_side(graph, self.state != AIR)
         self.exterior = (graph.link_cells[:, 1] < 0) & s0
         lnb = graph.link_neighbours
         self.l_rows = np.repeat(np.arange(graph.n_links), np.diff(graph.link_start))
@@ -120,7 +120,7 @@ def test_enclosed_air_pocket_links_never_become_exterior(cone_graph):
     centre = np.array([0.0, 0.0, 0.25])
     d = np.linalg.norm(g.seeds - centre, axis=1)
     pocket = np.argsort(d)[:4]
-    s0, s1 = _solid_side(g, np.ones(g.n_cells, bool))
+    _s0, s1 = _solid_side(g, np.ones(g.n_cells, bool))
     assert not s1[np.isin(g.link_cells[:, 0], pocket) & (g.link_cells[:, 1] < 0)].any()
     assert not np.isin(g.link_cells[g.link_cells[:, 1] < 0, 0], pocket).any()  # the pocket is inside
     sim = FreezeThawSimulation(g, air=pocket, seed=4)
@@ -197,12 +197,12 @@ def test_resistance_function_and_core_air_masks(cone_graph):
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    (dict(resistance=np.ones(3)), "resistance"),
-    (dict(resistance=lambda x: np.full(len(x), np.nan)), "NaN"),
-    (dict(core=[10**6]), "core"),
-    (dict(core=[1], air=[1]), "both core and air"),
-    (dict(air=np.ones(4, bool)), "air mask"),
-    (dict(seed=-1), "seed"),
+    ({"resistance": np.ones(3)}, "resistance"),
+    ({"resistance": lambda x: np.full(len(x), np.nan)}, "NaN"),
+    ({"core": [10**6]}, "core"),
+    ({"core": [1], "air": [1]}, "both core and air"),
+    ({"air": np.ones(4, bool)}, "air mask"),
+    ({"seed": -1}, "seed"),
 ])
 def test_bad_options_raise(cone_graph, kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -210,12 +210,12 @@ def test_bad_options_raise(cone_graph, kwargs, match):
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    (dict(water_direction=(0, 0, 0)), "water_direction"),
-    (dict(gravity=(np.nan, 0, 1)), "gravity"),
-    (dict(spread=200.0), "spread"),
-    (dict(water=0.0), "water"),
-    (dict(k_solid=-1.0), "k_solid"),
-    (dict(break_probability=1.5), "break_probability"),
+    ({"water_direction": (0, 0, 0)}, "water_direction"),
+    ({"gravity": (np.nan, 0, 1)}, "gravity"),
+    ({"spread": 200.0}, "spread"),
+    ({"water": 0.0}, "water"),
+    ({"k_solid": -1.0}, "k_solid"),
+    ({"break_probability": 1.5}, "break_probability"),
 ])
 def test_bad_parameters_raise(kwargs, match):
     with pytest.raises(ValueError, match=match):

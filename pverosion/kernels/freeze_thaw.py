@@ -42,7 +42,7 @@ from scipy.sparse.csgraph import connected_components
 
 from pverosion.kernels.shards import ShardGraph
 
-__all__ = ["SOLID", "AIR", "CORE", "FreezeThawParameters", "FreezeThawSimulation", "PathRecord"]
+__all__ = ["AIR", "CORE", "SOLID", "FreezeThawParameters", "FreezeThawSimulation", "PathRecord"]
 
 SOLID, AIR, CORE = 0, 1, 2
 """Cell states."""
