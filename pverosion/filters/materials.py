@@ -19,14 +19,16 @@ __all__ = ["MaterialSampler", "MaterialsFromVolume", "grid_points", "parse_numbe
 ASSOCIATIONS = ("point", "cell")
 
 
-def parse_numbers(text: str, name: str) -> list[float]:
-    """Comma- or space-separated numbers of a string option; ``ValueError`` naming the option."""
+def parse_numbers(text: str, name: str, *, count: int | None = None) -> list[float]:
+    """Comma- or space-separated numbers of a string option (exactly ``count`` if given); ``ValueError`` naming it."""
     try:
         values = [float(v) for v in text.replace(",", " ").split()]
     except ValueError:
         raise ValueError(f"{name} must be numbers separated by commas; got {text!r}") from None
     if not values:
         raise ValueError(f"{name} needs at least one number")
+    if count is not None and len(values) != count:
+        raise ValueError(f"{name} needs {count} numbers; got {len(values)} in {text!r}")
     return values
 
 

@@ -246,6 +246,11 @@ class FreezeThawSimulation:
         return self.state != AIR
 
     @property
+    def n_breaks(self) -> int:
+        """Breaks of links between solid cells so far."""
+        return int(self._log.counts[0])
+
+    @property
     def breaks(self) -> list[tuple[int, int, np.ndarray]]:
         """Every break of a link between two solid cells, in order: (link, path index, cells sent to air)."""
         log = self._log
