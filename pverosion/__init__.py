@@ -6,7 +6,15 @@ a PyVista accessor (``mesh.erosion.curvature()``), the ``pverosion`` command lin
 and ParaView plugins.
 """
 
-from pverosion.api import curvature, materials_from_volume, sample_materials, voxel_erosion, weather
+from pverosion.api import (
+    curvature,
+    freeze_thaw,
+    materials_from_volume,
+    sample_materials,
+    shard_graph,
+    voxel_erosion,
+    weather,
+)
 from pverosion.kernels.validation import InvalidMeshError
 from pverosion.plotting import CURVATURE_CMAP, curvature_cmap
 
@@ -20,8 +28,10 @@ __all__ = [
     "__version__",
     "curvature",
     "curvature_cmap",
+    "freeze_thaw",
     "materials_from_volume",
     "sample_materials",
+    "shard_graph",
     "voxel_erosion",
     "weather",
 ]

@@ -33,3 +33,11 @@ class ErosionAccessor:
     def voxel(self, **options) -> pv.MultiBlock:
         """Voxel hydraulic erosion of this voxel grid; see :func:`pverosion.voxel_erosion`."""
         return api.voxel_erosion(self._dataset, **options)
+
+    def shards(self, **options) -> pv.MultiBlock:
+        """Voronoi shards of this closed mesh; see :func:`pverosion.shard_graph`."""
+        return api.shard_graph(self._dataset, **options)
+
+    def freeze_thaw(self, **options) -> pv.MultiBlock:
+        """Freeze–thaw weathering of this closed mesh; see :func:`pverosion.freeze_thaw`."""
+        return api.freeze_thaw(self._dataset, **options)

@@ -8,6 +8,7 @@ import pyvista as pv
 from pverosion._frontend import apply_filter
 from pverosion.filters.curvature import Curvature
 from pverosion.filters.materials import MaterialSampler
+from pverosion.filters.shards import FreezeThaw, ShardGraph
 from pverosion.filters.voxel import VoxelErosion
 from pverosion.filters.weathering import Weathering
 from pverosion.kernels.bsp import BSPTree
@@ -19,7 +20,8 @@ from pverosion.kernels.materials import (
 )
 from pverosion.kernels.weathering import Erodibility
 
-__all__ = ["curvature", "materials_from_volume", "sample_materials", "voxel_erosion", "weather"]
+__all__ = ["curvature", "freeze_thaw", "materials_from_volume", "sample_materials", "shard_graph", "voxel_erosion",
+           "weather"]
 
 
 def curvature(mesh: pv.PolyData, *, orientation: str = "outward", normalization: str = "none") -> pv.PolyData:
@@ -257,3 +259,76 @@ def voxel_erosion(grid: pv.ImageData, *, iterations: int = 100, time_step: float
     return apply_filter(VoxelErosion, grid, iterations=iterations, time_step=time_step, model=model,
                         source_velocity=velocity, **options)
 
+
+
+def shard_graph(mesh: pv.PolyData, *, cells: int = 1000, pattern: str = "uniform", seed: int = 0,
+                **options) -> pv.MultiBlock:
+    """Fracture a closed mesh into Voronoi shards clipped exactly to it (Mateos et al. §4).
+
+    Parameters
+    ----------
+    mesh : pyvista.PolyData
+        A closed triangle mesh, convex or not. Not modified.
+    cells : int, default: 1000
+        About how many shards.
+    pattern : {"uniform", "grid", "hex", "slabs", "poisson", "vertices"}, default: "uniform"
+        Seed pattern (see :func:`pverosion.filters.shards.pattern_seeds`).
+    seed : int, default: 0
+    **options
+        ``jitter``, ``layers``, ``tilt``, ``radius_gradient`` of :class:`pverosion.filters.ShardGraph`.
+
+    Returns
+    -------
+    pyvista.MultiBlock
+        ``surface``, ``shards`` and ``links`` (see :mod:`pverosion.filters.shards`).
+    """
+    return apply_filter(ShardGraph, mesh, cells=cells, pattern=pattern, seed=seed, **options)
+
+
+def freeze_thaw(mesh: pv.PolyData, *, paths: int = 1000, cells: int = 1000, pattern: str = "uniform",
+                water_direction=(0.0, 0.0, -1.0), gravity=(0.0, 0.0, -1.0), resistance=0.0, core=None,
+                seed: int = 0, **options) -> pv.MultiBlock:
+    """Freeze–thaw weathering of a closed mesh on Voronoi shards (Mateos et al. §5).
+
+    Parameters
+    ----------
+    mesh : pyvista.PolyData
+        A closed triangle mesh, convex or not. Not modified.
+    paths : int, default: 1000
+        Water paths to run.
+    cells, pattern, seed
+        Shards as in :func:`shard_graph`.
+    water_direction, gravity : (3,) float
+        Mean direction the water travels in, and the direction it flows in between links.
+    resistance : float, callable or pyvista.ImageData, default: 0
+        Resistance field rho in [0, 1]: a constant, a function of points (n, 3) -> (n,), or a 3-D image
+        whose active scalars are sampled at the link centroids.
+    core : {"none", "surface"} or callable, optional
+        Cells never removed: a mode of the filter's ``core`` option, or a function of the cells' seed
+        points (n, 3) -> (n,) bool.
+    **options
+        Other options of :class:`pverosion.filters.FreezeThaw` (``spread``, ``core_window``, ``k_solid``,
+        ``k_dmg``, ``shards``, ``record_paths``, ...).
+
+    Returns
+    -------
+    pyvista.MultiBlock
+        ``surface``, ``shards``, ``links`` and ``paths`` (all of them) after the run.
+    """
+    if int(paths) != paths or paths < 0:
+        raise ValueError(f"paths must be a non-negative integer; got {paths!r}")
+    vector = {name: ",".join(repr(float(v)) for v in np.asarray(value, dtype=float).reshape(3))
+              for name, value in (("water_direction", water_direction), ("gravity", gravity))}
+    alg = FreezeThaw(iterations=1 if paths else 0, paths_per_step=max(int(paths), 1), cells=cells, pattern=pattern, seed=seed, **vector,
+                     **options)
+    if callable(core):
+        alg.SetCoreCells(core)
+    elif core is not None:
+        alg.set_option("core", core)
+    if isinstance(resistance, pv.ImageData) or callable(resistance):
+        alg.SetResistanceField(resistance)
+    else:
+        alg.set_option("resistance", resistance)
+    if not isinstance(mesh, pv.PolyData):
+        raise TypeError(f"freeze_thaw needs a PolyData surface; got {type(mesh).__name__}")
+    return pv.wrap(alg.run(mesh))

@@ -57,7 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
         else:
             cmd.add_argument("input", type=Path,
                              help="input surface (any format PyVista reads: PLY, STL, OBJ, VTP, VTK)")
-            cmd.add_argument("-o", "--output", type=Path, required=True, help="output file (.vtp recommended)")
+            output = ".vtm, a MultiBlock" if filter_cls.OUTPUT_TYPE == "vtkMultiBlockDataSet" else ".vtp recommended"
+            cmd.add_argument("-o", "--output", type=Path, required=True, help=f"output file ({output})")
             cmd.add_argument("--screenshot", type=Path, help="also render the result off-screen to this PNG")
         _add_filter_options(cmd, filter_cls)
         if filter_cls.TIME_DEPENDENT:
@@ -120,8 +121,11 @@ def _run_stage(args: argparse.Namespace) -> None:
 
         if filter_cls.OUTPUT_TYPE == "vtkImageData":
             plot_slices(result, args.screenshot)
-        elif filter_cls.OUTPUT_TYPE == "vtkMultiBlockDataSet":  # voxel erosion: slices of the state
+        elif filter_cls.OUTPUT_TYPE == "vtkMultiBlockDataSet" and "state" in result.keys():  # voxel: slices
             plot_slices(result["state"], args.screenshot, scalars="voxel_class")
+        elif filter_cls.OUTPUT_TYPE == "vtkMultiBlockDataSet":  # shards: the remaining shards
+            shown = result["shards"] if "shards" in result.keys() else result["surface"]
+            render_scalars(shown, args.screenshot, scalars="shard_colour", cmap="tab20")
         else:
             render_scalars(result, args.screenshot)
         print(f"screenshot -> {args.screenshot}")

@@ -53,6 +53,13 @@ def _symmetric_limits(values, percentile: float) -> tuple[float, float]:
     return -limit, limit
 
 
+def _colours(values, percentile: float, cmap: str | None) -> dict:
+    """Colour map options: the curvature coding with symmetric limits, or ``cmap`` over the data range."""
+    if cmap is None:
+        return {"cmap": curvature_cmap(), "clim": _symmetric_limits(values, percentile)}
+    return {"cmap": cmap}
+
+
 def _save_screenshot(plotter, path: str | os.PathLike) -> Path:
     """Write the plotter's image to ``path`` atomically and close it."""
     path = Path(path)
@@ -84,11 +91,13 @@ def render_scalars(
     scalars: str = "mean_curvature",
     window_size: tuple[int, int] = (1024, 768),
     percentile: float = 98.0,
+    cmap: str | None = None,
 ) -> Path:
     """Render ``mesh`` coloured by ``scalars`` with the curvature map, off-screen, to a PNG.
 
     Colour limits are symmetric about zero at the given percentile of
     ``|scalars|``, so zero is green and outliers do not wash out the rest.
+    With ``cmap``, that colour map spans the data range instead.
 
     Parameters
     ----------
@@ -98,6 +107,7 @@ def render_scalars(
     scalars : str, default: "mean_curvature"
     window_size : tuple of int, default: (1024, 768)
     percentile : float, default: 98.0
+    cmap : str, optional
 
     Returns
     -------
@@ -105,8 +115,7 @@ def render_scalars(
     """
     pv = _offscreen_pyvista()
     plotter = pv.Plotter(off_screen=True, window_size=list(window_size))
-    plotter.add_mesh(mesh, scalars=scalars, cmap=curvature_cmap(), clim=_symmetric_limits(mesh[scalars], percentile),
-                     smooth_shading=True)
+    plotter.add_mesh(mesh, scalars=scalars, smooth_shading=True, **_colours(mesh[scalars], percentile, cmap))
     plotter.view_isometric()
     return _save_screenshot(plotter, path)
 
@@ -153,11 +162,8 @@ def render_strip(
     for i, row in enumerate(rows):
         for j, mesh in enumerate(row):
             plotter.subplot(i, j)
-            if cmap is None:
-                colours = {"cmap": curvature_cmap(), "clim": _symmetric_limits(mesh[scalars], percentile)}
-            else:
-                colours = {"cmap": cmap}
-            plotter.add_mesh(mesh, scalars=scalars, smooth_shading=True, show_scalar_bar=False, **colours)
+            plotter.add_mesh(mesh, scalars=scalars, smooth_shading=True, show_scalar_bar=False,
+                             **_colours(mesh[scalars], percentile, cmap))
             if labels is not None:
                 plotter.add_text(labels[i][j], font_size=10, position="upper_left")
             plotter.view_isometric()

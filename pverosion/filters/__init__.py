@@ -7,19 +7,22 @@ generated from it, so a new stage is exposed by adding its class here.
 from pverosion.filters.base import ErosionFilter, Param
 from pverosion.filters.curvature import Curvature
 from pverosion.filters.materials import MaterialSampler, MaterialsFromVolume
+from pverosion.filters.shards import FreezeThaw, ShardGraph
 from pverosion.filters.voxel import VoxelErosion
 from pverosion.filters.weathering import Weathering
 
 ALL_FILTERS: tuple[type[ErosionFilter], ...] = (Curvature, Weathering, MaterialsFromVolume, MaterialSampler,
-                                                VoxelErosion)
+                                                VoxelErosion, ShardGraph, FreezeThaw)
 
 __all__ = [
     "ALL_FILTERS",
     "Curvature",
     "ErosionFilter",
+    "FreezeThaw",
     "MaterialSampler",
     "MaterialsFromVolume",
     "Param",
+    "ShardGraph",
     "VoxelErosion",
     "Weathering",
 ]
