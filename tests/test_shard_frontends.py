@@ -1,0 +1,118 @@
+"""ShardGraph / FreezeThaw filters, the Python front ends, the accessor and ``pverosion shards``."""
+
+import numpy as np
+import pytest
+import pyvista as pv
+
+import pverosion
+from pverosion.cli import main
+from pverosion.filters import FreezeThaw, ShardGraph
+from pverosion.filters.shards import PATTERNS, pattern_seeds
+from pverosion.shard_scenes import hill_cone
+
+
+@pytest.fixture(scope="module")
+def cone():
+    return hill_cone(resolution=24)
+
+
+def _closed(mesh: pv.PolyData) -> bool:
+    return mesh.n_open_edges == 0
+
+
+def test_shard_graph_rebuilds_a_torus_from_closed_shards():
+    torus = pv.ParametricTorus(ringradius=1.0, crosssectionradius=0.4).triangulate().clean()
+    out = pverosion.shard_graph(torus, cells=150, seed=3)
+    surface, shards, links = out["surface"], out["shards"], out["links"]
+    assert _closed(surface) and surface.volume == pytest.approx(torus.volume, rel=1e-6)
+    assert shards.volume == pytest.approx(torus.volume, rel=1e-6)
+    n_cells = surface.field_data["shard_cells"][0]
+    assert len(np.unique(shards["cell_id"])) == n_cells
+    assert links["exterior"].sum() > 0 and set(np.unique(links["exterior"])) <= {0, 1}
+    assert torus.n_points == pv.ParametricTorus(ringradius=1.0, crosssectionradius=0.4).triangulate().clean().n_points
+
+
+@pytest.mark.parametrize("pattern", PATTERNS)
+def test_every_seed_pattern_fills_the_cone(cone, pattern):
+    from pverosion.filters.base import polydata_triangles
+    from pverosion.kernels.shards import build_shards
+
+    points, faces = polydata_triangles(cone)
+    seeds = pattern_seeds(points, faces, pattern=pattern, cells=200, seed=1)
+    graph = build_shards(seeds, points, faces)
+    assert graph.volume.sum() == pytest.approx(cone.volume, rel=1e-9)
+    if pattern not in ("poisson", "vertices", "hex"):  # those set a spacing, not a count
+        assert 0.5 * 200 <= graph.n_cells <= 2.0 * 200
+
+
+def test_freeze_thaw_erodes_keeps_core_and_stays_closed(cone):
+    alg = FreezeThaw(iterations=4, paths_per_step=2500, cells=200, core="surface", core_window="0,-0.45,0.3,0.35",
+                     water_direction="0,1,-0.3", seed=2)
+    first = pv.wrap(alg.run_time(cone, 0))
+    last = pv.wrap(alg.run_time(cone, 4))
+    core_before = np.unique(first["shards"]["cell_id"][first["shards"]["core"] == 1])
+    core_after = np.unique(last["shards"]["cell_id"][last["shards"]["core"] == 1])
+    np.testing.assert_array_equal(core_before, core_after)
+    surface = last["surface"]
+    field = surface.field_data
+    assert field["shard_paths"][0] == 10000 and field["shard_breaks"][0] > 0
+    assert field["shard_solid_cells"][0] < field["shard_cells"][0]  # shards came off through the window
+    assert _closed(surface)
+    assert surface.volume == pytest.approx(last["shards"].volume, rel=1e-9)
+    assert surface.volume < cone.volume
+    paths = last["paths"]
+    assert paths.n_lines > 0 and (np.asarray(paths["water"]) <= 1.0).all()
+
+
+def test_time_steps_continue_and_rerun_bit_for_bit(cone):
+    options = {"iterations": 3, "paths_per_step": 800, "cells": 150, "seed": 5}
+    stepped = FreezeThaw(**options)
+    result = pv.wrap(stepped.step_through(cone, [0, 1, 2, 3]))
+    fresh = pv.wrap(FreezeThaw(**options).run(cone))
+    for name in ("surface", "links"):
+        assert result[name].points.tobytes() == fresh[name].points.tobytes()
+        assert np.asarray(result[name]["link_life"]).tobytes() == np.asarray(fresh[name]["link_life"]).tobytes()
+    again = pv.wrap(stepped.run_time(cone, 3))  # cached: same
+    assert np.asarray(again["links"]["link_life"]).tobytes() == np.asarray(fresh["links"]["link_life"]).tobytes()
+
+
+def test_front_ends_take_resistance_fields_and_core_functions(cone):
+    image = pv.ImageData(dimensions=(8, 8, 8), spacing=(0.3, 0.3, 0.15), origin=(-1.05, -1.05, 0.0))
+    image.point_data["rho"] = np.full(image.n_points, 1.0)
+    options = {"paths": 2000, "cells": 120, "seed": 1, "shards": False, "record_paths": False}
+    soft = pverosion.freeze_thaw(cone, **options)
+    hard = pverosion.freeze_thaw(cone, resistance=image, **options)
+    # resistance absorbs more water per link: more damage where the paths go, so more breaks in total
+    assert hard["surface"].field_data["shard_breaks"][0] != soft["surface"].field_data["shard_breaks"][0]
+    kept = cone.erosion.freeze_thaw(core=lambda seeds: np.ones(len(seeds), bool), **options)
+    assert kept["surface"].field_data["shard_solid_cells"][0] == kept["surface"].field_data["shard_cells"][0]
+    assert "shards" not in kept.keys() and "paths" not in kept.keys()
+    assert cone.erosion.shards(cells=50)["surface"].n_cells > 0
+
+
+def test_bad_inputs_raise_clear_errors(cone):
+    open_mesh = pv.Sphere().clip("z")
+    with pytest.raises(ValueError, match="closed"):
+        pverosion.shard_graph(open_mesh.triangulate(), cells=20)
+    with pytest.raises(ValueError, match="core_window"):
+        FreezeThaw(core_window="1,2", cells=20).run(cone)
+    with pytest.raises(ValueError, match="pattern"):
+        FreezeThaw(pattern="spiral")
+    with pytest.raises(TypeError, match="resistance"):
+        FreezeThaw().SetResistanceField("granite")
+    with pytest.raises(ValueError, match="paths"):
+        pverosion.freeze_thaw(cone, paths=-1)
+
+
+def test_cli_writes_the_result_and_the_series(tmp_path, cone, capsys):
+    src = tmp_path / "cone.vtp"
+    cone.save(src)
+    code = main(["shards", str(src), "-o", str(tmp_path / "out.vtm"), "--cells", "80", "--iterations", "2",
+                 "--paths-per-step", "300", "--save-every", "1", "--screenshot", str(tmp_path / "shot.png")])
+    assert code == 0
+    out = pv.read(tmp_path / "out.vtm")
+    assert set(out.keys()) >= {"surface", "shards", "links", "paths"}
+    assert pv.get_reader(tmp_path / "out.pvd").time_values == [0.0, 1.0, 2.0]
+    assert (tmp_path / "shot.png").stat().st_size > 0
+    assert main(["shards", str(src), "-o", str(tmp_path / "bad.vtm"), "--water-direction", "0,0"]) == 2
+    assert "water_direction" in capsys.readouterr().err
