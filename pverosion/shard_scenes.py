@@ -32,15 +32,17 @@ def cave_hill(small: bool = False):
     """Figure 14: the cone with core cells on its surface except a front window, so a cave is carved."""
     mesh = hill_cone()
     options = {"cells": 800 if small else 3000, "pattern": "grid", "jitter": 0.3, "core": "surface",
-               "core_window": "0,-0.45,0.3,0.3", "water_direction": "0,1,-0.3", "spread": 15.0,
-               "paths_per_step": 1000 if small else 5000}
-    return mesh, options, 8 if small else 14
+               "core_window": "0.32,0.32,0.3,0.3", "water_direction": "-1,-1,-0.6", "spread": 15.0,
+               "paths_per_step": 2000 if small else 10000}
+    return mesh, options, 8 if small else 12
 
 
 def basalt_wall(small: bool = False):
-    """Figure 15: a wall of jittered hexagonal columns (columnar basalt); the back row of columns is core."""
+    """Figure 15: a wall of jittered hexagonal columns (columnar basalt) with cross joints; the back row is core."""
     mesh = _box((-1.5, 1.5, -0.4, 0.4, 0.0, 1.6))
-    options = {"cells": 120 if small else 300, "pattern": "hex", "jitter": 0.12, "core_plane": "0,1,0,0.25", "water_direction": "0,1,-0.5", "spread": 10.0, "paths_per_step": 200}
+    options = {"cells": 120 if small else 300, "pattern": "hex", "jitter": 0.12, "layers": "0.4",
+               "core_plane": "0,1,0,0.25", "water_direction": "0,0.5,-1", "spread": 10.0,
+               "paths_per_step": 300 if small else 1000}
     return mesh, options, 10 if small else 20
 
 
@@ -48,8 +50,8 @@ def slab_block(small: bool = False):
     """Figure 16: a box cut into tilted slabs of varying thickness, water from the side and gravity upwards."""
     mesh = _box((0.0, 2.0, 0.0, 1.0, 0.0, 1.5))
     options = {"cells": 60 if small else 108, "pattern": "slabs", "layers": "0.15,0.3,0.2,0.35", "tilt": 20.0,
-               "jitter": 0.0, "water_direction": "-1,0,0", "gravity": "0,0,1", "k_solid": 0.2, "k_air": 0.1,
-               "k_res": 0.5, "paths_per_step": 150}
+               "jitter": 0.0, "water_direction": "1,0,0", "spread": 30.0, "gravity": "0,0,1", "k_solid": 0.2,
+               "k_air": 0.1, "k_res": 0.5, "paths_per_step": 500 if small else 2000}
     return mesh, options, 10 if small else 20
 
 
@@ -72,7 +74,7 @@ def ridge_scene(path: str | Path, small: bool = False):
     z = mesh.points[:, 2]
     floor = z.min() + 0.15 * (z.max() - z.min())
     options = {"cells": 1500 if small else 6000, "pattern": "grid", "jitter": 0.3, "core_plane": f"0,0,-1,{-floor}",
-               "water_direction": "0.3,0,-1", "spread": 10.0, "paths_per_step": 1000 if small else 1500}
+               "water_direction": "0.3,0,-1", "spread": 10.0, "paths_per_step": 2000 if small else 6000}
     return mesh, options, 10
 
 

@@ -57,7 +57,8 @@ _GENERATION_PARAMS = (
           "(columnar basalt), slabs (strata), Poisson disc, or a subset of the mesh vertices.", choices=PATTERNS),
     Param("jitter", 0.2, "Jitter of the grid, hex and slab patterns, as a fraction of the spacing.", minimum=0.0,
           maximum=0.49),
-    Param("layers", "", "Slab thicknesses from the bottom up, as t1,t2,... (cycled; default: the spacing)."),
+    Param("layers", "", "Slab thicknesses from the bottom up, as t1,t2,... (cycled; default: the spacing); hex: "
+          "the height of the column pieces (default: whole columns)."),
     Param("tilt", 0.0, "Tilt of the slab pattern about x, in degrees.", minimum=-90.0, maximum=90.0),
     Param("radius_gradient", "0,0,0", "Poisson disc: change of the radius per unit length, as x,y,z."),
     Param("seed", 0, "Random seed of the seed pattern and of the water paths.", minimum=0),
@@ -84,7 +85,8 @@ def pattern_seeds(points: np.ndarray, faces: np.ndarray, *, pattern: str = "unif
     jitter : float
         Fraction of the spacing (grid, hex, slabs).
     layers : sequence of float
-        Slab thicknesses, bottom up (empty: the spacing).
+        Slab thicknesses, bottom up (empty: the spacing); for hexagonal
+        columns, the height of the column pieces (empty: whole columns).
     tilt : float
         Slab tilt about x in degrees.
     radius_gradient : (3,) float
@@ -114,10 +116,12 @@ def pattern_seeds(points: np.ndarray, faces: np.ndarray, *, pattern: str = "unif
         return uniform_seeds(int(cells), bounds=bounds, inside=inside, seed=seed)
     if pattern == "grid":
         return jittered_grid_seeds(spacing, bounds=bounds, jitter=jitter, inside=inside, seed=seed)
-    if pattern == "hex":
-        section = volume / float(hi[2] - lo[2])
-        return hex_column_seeds(math.sqrt(2.0 * section / (math.sqrt(3.0) * cells)), bounds=bounds, jitter=jitter,
-                                inside=inside, seed=seed)
+    if pattern == "hex":  # with layers: columns broken by cross joints every layers[0]
+        height = float(hi[2] - lo[2])
+        layer = float(layers[0]) if len(layers) else None
+        columns = cells / (math.ceil(height / layer) if layer else 1)
+        spacing = math.sqrt(2.0 * volume / height / (math.sqrt(3.0) * columns))
+        return hex_column_seeds(spacing, bounds=bounds, jitter=jitter, layer_spacing=layer, inside=inside, seed=seed)
     if pattern == "slabs":
         thickness = list(layers) if len(layers) else spacing
         return slab_seeds(thickness, bounds=bounds, spacing=spacing, tilt=tilt, jitter=jitter, inside=inside,
