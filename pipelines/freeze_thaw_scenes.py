@@ -41,7 +41,8 @@ def run_scene(name: str, build, out: Path) -> None:
     alg.step_through(mesh, range(steps + 1), on_output=save)
     seconds = time.perf_counter() - start
     surface = pv.wrap(alg.GetOutputDataObject(0))["surface"]
-    field = {key: int(surface.field_data[key][0]) for key in surface.field_data.keys() if key != "shard_mean_area"}
+    field = {key: int(surface.field_data[key][0])
+             for key in ("shard_cells", "shard_interior_links", "shard_paths", "shard_solid_cells", "shard_breaks")}
     render_strip([panels], out / f"{name}.png", labels=[labels], scalars="shard_colour", cmap="tab20")
     print(f"{name}: {field['shard_cells']} cells ({field['shard_interior_links']} interior links), "
           f"{field['shard_paths']} paths: {field['shard_solid_cells']} cells left, {field['shard_breaks']} links "
