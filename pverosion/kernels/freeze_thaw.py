@@ -502,6 +502,28 @@ def _update_exterior(new_air, link_cells, area, all_start, all_links, link_start
 # --- detachment ---------------------------------------------------------------------------------------------
 
 
+@njit(cache=True, inline="always")
+def _expand(x, own, other, queue, tail, link_cells, cell_start, cell_links, life, state, cell_mark):
+    """Queue the unvisited solid neighbours of cell ``x`` across unbroken links, marked ``own``.
+
+    Returns the new queue length and whether a cell marked ``other`` (the other search) was reached.
+    """
+    for k in range(cell_start[x], cell_start[x + 1]):
+        m = cell_links[k]
+        if life[m] <= 0.0:
+            continue
+        y = link_cells[m, 1] if link_cells[m, 0] == x else link_cells[m, 0]
+        if state[y] == 1:
+            continue
+        if cell_mark[y] == other:
+            return tail, True
+        if cell_mark[y] != own:
+            cell_mark[y] = own
+            queue[tail] = y
+            tail += 1
+    return tail, False
+
+
 @njit(cache=True)
 def _detach(link, link_cells, cell_start, cell_links, life, state, component, core_count, next_label, cell_mark,
             queue_a, queue_b, stamp):
@@ -522,39 +544,17 @@ def _detach(link, link_cells, cell_start, cell_links, life, state, component, co
         if ha == ta:
             side = 0
             break
-        x = queue_a[ha]
+        ta, met = _expand(queue_a[ha], sa, sb, queue_a, ta, link_cells, cell_start, cell_links, life, state, cell_mark)
         ha += 1
-        for k in range(cell_start[x], cell_start[x + 1]):
-            m = cell_links[k]
-            if life[m] <= 0.0:
-                continue
-            y = link_cells[m, 1] if link_cells[m, 0] == x else link_cells[m, 0]
-            if state[y] == 1:
-                continue
-            if cell_mark[y] == sb:
-                return 0
-            if cell_mark[y] != sa:
-                cell_mark[y] = sa
-                queue_a[ta] = y
-                ta += 1
+        if met:
+            return 0
         if hb == tb:
             side = 1
             break
-        x = queue_b[hb]
+        tb, met = _expand(queue_b[hb], sb, sa, queue_b, tb, link_cells, cell_start, cell_links, life, state, cell_mark)
         hb += 1
-        for k in range(cell_start[x], cell_start[x + 1]):
-            m = cell_links[k]
-            if life[m] <= 0.0:
-                continue
-            y = link_cells[m, 1] if link_cells[m, 0] == x else link_cells[m, 0]
-            if state[y] == 1:
-                continue
-            if cell_mark[y] == sa:
-                return 0
-            if cell_mark[y] != sb:
-                cell_mark[y] = sb
-                queue_b[tb] = y
-                tb += 1
+        if met:
+            return 0
     small = queue_a if side == 0 else queue_b
     n_small = ta if side == 0 else tb
     other = b if side == 0 else a
@@ -575,17 +575,9 @@ def _detach(link, link_cells, cell_start, cell_links, life, state, component, co
         queue_a[0] = other
         head, tail = 0, 1
         while head < tail:
-            x = queue_a[head]
+            tail, _ = _expand(queue_a[head], s, -1, queue_a, tail, link_cells, cell_start, cell_links, life, state,
+                              cell_mark)
             head += 1
-            for k in range(cell_start[x], cell_start[x + 1]):
-                m = cell_links[k]
-                if life[m] <= 0.0:
-                    continue
-                y = link_cells[m, 1] if link_cells[m, 0] == x else link_cells[m, 0]
-                if state[y] != 1 and cell_mark[y] != s:
-                    cell_mark[y] = s
-                    queue_a[tail] = y
-                    tail += 1
         return tail
     # both parts hold core cells: both stay, the smaller one gets a new label
     new = next_label[0]
