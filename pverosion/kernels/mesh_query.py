@@ -1,6 +1,8 @@
 """Spatial queries on a closed triangle mesh: inside/outside by ray parity, triangles near a box.
 
-Both use uniform bucket grids (CSR arrays) built once per mesh. The parity
+Both use uniform bucket grids (CSR arrays) built once per mesh: by the
+triangles' bounding boxes (:class:`TriangleIndex`) or, tighter for long thin
+triangles, by the triangles themselves (:func:`overlap_grid`). The parity
 test casts a ray along +z and counts the triangles it crosses; a point on
 the shared edge or vertex of triangles seen from above is claimed by
 exactly one of them (the "top-left" rule of rasterisers), so edges and
@@ -14,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-__all__ = ["TriangleIndex", "box_triangles", "point_inside", "segment_crossings"]
+__all__ = ["TriangleIndex", "box_triangles", "overlap_grid", "point_inside", "segment_crossings", "unit_normals"]
 
 
 @dataclass(frozen=True)
@@ -56,9 +58,7 @@ class TriangleIndex:
         points = np.ascontiguousarray(points, dtype=np.float64)
         faces = np.ascontiguousarray(faces, dtype=np.int64)
         tri = points[faces]
-        normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        length = np.linalg.norm(normals, axis=1, keepdims=True)
-        normals = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
+        normals = unit_normals(points, faces)
         lo = points.min(axis=0)
         extent = np.maximum(points.max(axis=0) - lo, 1e-12)
         if size is None:
@@ -71,6 +71,14 @@ class TriangleIndex:
         d2 = np.array([dims[0], dims[1], 1])
         start2, items2 = _bucket(tlo * [1, 1, 0], thi * [1, 1, 0], d2)
         return cls(points, faces, normals, lo, float(size), dims, start, items, start2, items2)
+
+
+def unit_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit normals (n_faces, 3) of the triangles ``faces`` over ``points`` (right-hand rule; zero if degenerate)."""
+    tri = points[faces]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    return np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
 
 
 @njit(cache=True)
@@ -91,6 +99,108 @@ def _bucket(tlo, thi, dims):
                     b = i + dims[0] * (j + dims[1] * k)
                     items[fill[b]] = t
                     fill[b] += 1
+    return start, items
+
+
+@njit(cache=True, inline="always")
+def _needle(points, faces, t):
+    """Whether triangle ``t`` has sides at less than about 1e-6 rad, so rounding tilts its computed plane."""
+    a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+    ux, uy, uz = points[b, 0] - points[a, 0], points[b, 1] - points[a, 1], points[b, 2] - points[a, 2]
+    wx, wy, wz = points[c, 0] - points[a, 0], points[c, 1] - points[a, 1], points[c, 2] - points[a, 2]
+    nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+    return nx * nx + ny * ny + nz * nz <= 1e-12 * (ux * ux + uy * uy + uz * uz) * (wx * wx + wy * wy + wz * wz)
+
+
+@njit(cache=True)
+def _meets_box(points, faces, t, center, half):
+    """Separating-axis test: may triangle ``t`` meet the box ``center`` +- ``half`` (3-tuples)?
+
+    The plane of a needle (see :func:`_needle`) is not trusted to separate.
+    """
+    a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+    v = ((points[a, 0] - center[0], points[a, 1] - center[1], points[a, 2] - center[2]),
+         (points[b, 0] - center[0], points[b, 1] - center[1], points[b, 2] - center[2]),
+         (points[c, 0] - center[0], points[c, 1] - center[1], points[c, 2] - center[2]))
+    if not _needle(points, faces, t):  # the triangle's plane
+        ux, uy, uz = v[1][0] - v[0][0], v[1][1] - v[0][1], v[1][2] - v[0][2]
+        wx, wy, wz = v[2][0] - v[0][0], v[2][1] - v[0][1], v[2][2] - v[0][2]
+        nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+        if abs(nx * v[0][0] + ny * v[0][1] + nz * v[0][2]) > half[0] * abs(nx) + half[1] * abs(ny) + half[2] * abs(nz):
+            return False
+    for m in range(3):  # the nine cross products of a triangle edge and a box axis
+        e = (v[(m + 1) % 3][0] - v[m][0], v[(m + 1) % 3][1] - v[m][1], v[(m + 1) % 3][2] - v[m][2])
+        for k in range(3):
+            i, j = (k + 1) % 3, (k + 2) % 3  # axis k x e has components -e[j] along i and e[i] along j
+            p0 = e[i] * v[0][j] - e[j] * v[0][i]
+            p1 = e[i] * v[1][j] - e[j] * v[1][i]
+            p2 = e[i] * v[2][j] - e[j] * v[2][i]
+            r = half[i] * abs(e[j]) + half[j] * abs(e[i])
+            if min(p0, min(p1, p2)) > r or max(p0, max(p1, p2)) < -r:
+                return False
+    return True
+
+
+@njit(cache=True)
+def overlap_grid(points, faces, lo, size, dims, margin):
+    """Bucket grid of the triangles that meet each bucket (not just their bounding boxes).
+
+    Parameters
+    ----------
+    points : (m, 3) float64
+    faces : (k, 3) int64
+    lo : (3,) float64
+        Lower corner of the grid.
+    size : (3,) float64
+        Bucket edge along each axis: bucket (i, j, l) is the box from
+        ``lo + size * (i, j, l)`` to ``lo + size * (i + 1, j + 1, l + 1)``.
+    dims : (3,) int64
+        Buckets along x, y, z; they must cover the mesh.
+    margin : float
+        The buckets are grown by this much on every side, so a triangle
+        that touches a bucket is listed despite rounding.
+
+    Returns
+    -------
+    start : (n_buckets + 1,) int64
+        CSR offsets into ``items``, buckets x-fastest.
+    items : int64 array
+        Triangles of each bucket, in increasing order.
+    """
+    half = (0.5 * size[0] + margin, 0.5 * size[1] + margin, 0.5 * size[2] + margin)
+    cap = 4 * faces.shape[0] + 16
+    bucket = np.empty(cap, np.int64)
+    tri = np.empty(cap, np.int64)
+    n = 0
+    rng = np.empty((3, 2), np.int64)
+    for t in range(faces.shape[0]):
+        for a in range(3):
+            tmin = min(points[faces[t, 0], a], min(points[faces[t, 1], a], points[faces[t, 2], a]))
+            tmax = max(points[faces[t, 0], a], max(points[faces[t, 1], a], points[faces[t, 2], a]))
+            rng[a, 0] = min(max(int((tmin - margin - lo[a]) / size[a]), 0), dims[a] - 1)
+            rng[a, 1] = min(max(int((tmax + margin - lo[a]) / size[a]), 0), dims[a] - 1)
+        for k in range(rng[2, 0], rng[2, 1] + 1):
+            for j in range(rng[1, 0], rng[1, 1] + 1):
+                for i in range(rng[0, 0], rng[0, 1] + 1):
+                    center = (lo[0] + (i + 0.5) * size[0], lo[1] + (j + 0.5) * size[1], lo[2] + (k + 0.5) * size[2])
+                    if not _meets_box(points, faces, t, center, half):
+                        continue
+                    if n == cap:
+                        cap *= 2
+                        bucket = np.concatenate((bucket, np.empty(n, np.int64)))
+                        tri = np.concatenate((tri, np.empty(n, np.int64)))
+                    bucket[n] = i + dims[0] * (j + dims[1] * k)
+                    tri[n] = t
+                    n += 1
+    start = np.zeros(dims[0] * dims[1] * dims[2] + 1, np.int64)
+    for q in range(n):
+        start[bucket[q] + 1] += 1
+    start = np.cumsum(start)
+    fill = start[:-1].copy()
+    items = np.empty(n, np.int64)
+    for q in range(n):  # in triangle order, so every bucket's list is sorted
+        items[fill[bucket[q]]] = tri[q]
+        fill[bucket[q]] += 1
     return start, items
 
 

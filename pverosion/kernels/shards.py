@@ -1,8 +1,10 @@
 """Shards: Voronoi cells of seed points clipped to a closed mesh, and their link graphs (Mateos et al. §4).
 
-The mesh may be non-convex. A cell that no mesh triangle comes near is
-kept whole when its seed is inside the mesh and dropped otherwise. A cell
-that the surface crosses is clipped exactly:
+The mesh may be non-convex. The triangles that may meet a cell come from a
+grid of the triangles meeting each bucket of the seed grid, less those a
+plane of the cell or the triangle's own plane separates from the cell. A
+cell that no triangle meets is kept whole when its seed is inside the mesh
+and dropped otherwise. A cell that the surface crosses is clipped exactly:
 
 - each of its faces keeps the part inside the mesh. That part's boundary is
   the face's edges where they run inside (split where they cross the
@@ -18,7 +20,8 @@ faces of one cell along a Voronoi edge that runs inside the mesh, a face
 and a surface piece along their section, two surface pieces of one cell
 along a mesh edge, and the surface pieces of one triangle in two cells.
 Cells are computed in parallel batches with per-cell records, so the graph
-is the same for any thread count.
+is the same for any thread count; the records are then numbered into links
+and the pairs resolved to link ids cell by cell.
 """
 
 from __future__ import annotations
@@ -29,10 +32,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit, prange
 
-from pverosion.kernels.mesh_query import TriangleIndex, box_triangles, point_inside, segment_crossings
+from pverosion.kernels.mesh_query import _needle, overlap_grid, point_inside, segment_crossings, unit_normals
 from pverosion.kernels.topology import halfedge_twins
 from pverosion.kernels.validation import as_triangle_mesh
-from pverosion.kernels.voronoi import MAX_FACES, cell_polygons, seed_grid
+from pverosion.kernels.voronoi import MAX_FACE_VERTICES, MAX_FACES, cell_polygons, seed_grid
 
 __all__ = ["ShardGraph", "build_shards"]
 
@@ -225,11 +228,114 @@ def _section(t, n, d, points, faces):
 
 
 @njit(cache=True)
-def _cell(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, faces, normals, tri_adj, tlo, tsize, tdims, tstart,
-          titems, tstart2, titems2, rec_label, rec_val, pair_a, pair_b, pair_cell):
+def _near_triangles(verts, count, nf, planes, offsets, bmin, bmax, points, faces, normals, lo, size, dims, start, items,
+                    margin):
+    """Sorted mesh triangles that may meet the cell: all that do, and perhaps a few that pass within ``margin``.
+
+    Candidates come from the buckets of ``start, items`` (an :func:`overlap_grid` on the seed grid) under the
+    cell's box; a triangle is left out when its box misses the cell's, when one cell plane has all its
+    vertices outside, or when all cell vertices are on one side of its plane (unless it is a needle), each
+    by more than ``margin``.
+    """
+    i0 = min(max(int((bmin[0] - lo[0]) / size), 0), dims[0] - 1)
+    j0 = min(max(int((bmin[1] - lo[1]) / size), 0), dims[1] - 1)
+    k0 = min(max(int((bmin[2] - lo[2]) / size), 0), dims[2] - 1)
+    i1 = min(max(int((bmax[0] - lo[0]) / size), 0), dims[0] - 1)
+    j1 = min(max(int((bmax[1] - lo[1]) / size), 0), dims[1] - 1)
+    k1 = min(max(int((bmax[2] - lo[2]) / size), 0), dims[2] - 1)
+    n = 0
+    for k in range(k0, k1 + 1):
+        for j in range(j0, j1 + 1):
+            for i in range(i0, i1 + 1):
+                b = i + dims[0] * (j + dims[1] * k)
+                n += start[b + 1] - start[b]
+    found = np.empty(n, np.int64)
+    if n == 0:
+        return found
+    n = 0
+    for k in range(k0, k1 + 1):
+        for j in range(j0, j1 + 1):
+            for i in range(i0, i1 + 1):
+                b = i + dims[0] * (j + dims[1] * k)
+                for q in range(start[b], start[b + 1]):
+                    found[n] = items[q]
+                    n += 1
+    found.sort()
+    kept = 0
+    for q in range(n):
+        t = found[q]
+        if (q > 0 and t == found[q - 1]) or not _may_meet(t, verts, count, nf, planes, offsets, bmin, bmax, points,
+                                                         faces, normals, margin):
+            continue
+        found[kept] = t
+        kept += 1
+    return found[:kept]
+
+
+@njit(cache=True)
+def _may_meet(t, verts, count, nf, planes, offsets, bmin, bmax, points, faces, normals, margin):
+    """False when triangle ``t`` is at least ``margin`` away from the cell (see :func:`_near_triangles`)."""
+    a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+    for x in range(3):
+        if (min(points[a, x], min(points[b, x], points[c, x])) > bmax[x] + margin
+                or max(points[a, x], max(points[b, x], points[c, x])) < bmin[x] - margin):
+            return False
+    for g in range(nf):
+        nx, ny, nz, d = planes[g, 0], planes[g, 1], planes[g, 2], offsets[g] + margin
+        if (nx * points[a, 0] + ny * points[a, 1] + nz * points[a, 2] > d
+                and nx * points[b, 0] + ny * points[b, 1] + nz * points[b, 2] > d
+                and nx * points[c, 0] + ny * points[c, 1] + nz * points[c, 2] > d):
+            return False
+    if _needle(points, faces, t):  # rounding tilts its plane
+        return True
+    above = False
+    below = False
+    nx, ny, nz = normals[t, 0], normals[t, 1], normals[t, 2]
+    for f in range(nf):
+        for m in range(count[f]):
+            s = (nx * (verts[f, m, 0] - points[a, 0]) + ny * (verts[f, m, 1] - points[a, 1])
+                 + nz * (verts[f, m, 2] - points[a, 2]))
+            if s >= -margin:
+                above = True
+            if s <= margin:
+                below = True
+            if above and below:
+                return True
+    return False
+
+
+@njit(cache=True, inline="always")
+def _reaches_plane(t, n, d, points, faces, margin):
+    """Whether triangle ``t`` comes within ``margin`` of the plane n.x = d."""
+    lo = np.inf
+    hi = -np.inf
+    for m in range(3):
+        v = faces[t, m]
+        s = n[0] * points[v, 0] + n[1] * points[v, 1] + n[2] * points[v, 2] - d
+        lo = min(lo, s)
+        hi = max(hi, s)
+    return lo <= margin and hi >= -margin
+
+
+@njit(cache=True)
+def _twin_inside(label, edges, count, inside, nf, g_label, f_label):
+    """Whether the face labelled ``g_label`` runs inside the mesh along its edge to the face labelled ``f_label``."""
+    for g in range(nf):
+        if label[g] == g_label:
+            for m in range(count[g]):
+                if edges[g, m] == f_label and inside[g, m]:
+                    return True
+    return False
+
+
+@njit(cache=True)
+def _cell(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, faces, normals, tri_adj, tstart, titems,
+          cstart, citems, cdims, margin, rec_label, rec_val, pair_a, pair_b, pair_cell):
     """Link records and neighbour pairs of cell ``i``; returns (n_records, n_pairs, volume, status).
 
-    status: 0 ok, 1 polygon capacity exceeded, 2 record/pair capacity (the arrays' lengths) exceeded.
+    ``tstart, titems`` list the triangles meeting each bucket of the seed grid, ``cstart, citems`` those
+    meeting each (x, y) column of it (``cdims`` columns, for :func:`point_inside`). status: 0 ok, 1 polygon
+    capacity exceeded, 2 record/pair capacity (the arrays' lengths) exceeded.
     """
     max_rec = rec_label.size
     max_pair = pair_a.size
@@ -248,53 +354,53 @@ def _cell(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, 
             for a in range(3):
                 bmin[a] = min(bmin[a], verts[f, m, a])
                 bmax[a] = max(bmax[a], verts[f, m, a])
-    tris = box_triangles(bmin, bmax, points, faces, tlo, tsize, tdims, tstart, titems)
+    tris = _near_triangles(verts, count, nf, planes, offsets, bmin, bmax, points, faces, normals, lo, size, dims,
+                           tstart, titems, margin)
+    # a cell the surface does not cross is inside or outside as a whole, like its seed (no surface between them)
+    if tris.size == 0 and not point_inside(seeds[i], points, faces, lo, size, cdims, cstart, citems):
+        return 0, 0, 0.0, 0
     nrec = 0
     npair = 0
     volume = 0.0
     acc = np.zeros(4)
     cross = np.empty(tris.size)
-    buf = (np.empty((tris.size + nf + 3, 3)), np.empty((tris.size + nf + 3, 3)))
-    if tris.size == 0 and not point_inside(seeds[i], points, faces, tlo, tsize, tdims, tstart2, titems2):
-        return 0, 0, 0.0, 0
+    near = np.empty(tris.size, np.int64)
+    inside = np.empty((nf, MAX_FACE_VERTICES), np.bool_)  # does the face's edge m run inside the mesh?
     for f in range(nf):
         n = planes[f]
         o = (verts[f, 0, 0], verts[f, 0, 1], verts[f, 0, 2])
         acc[:] = 0.0
-        state = False
+        state = True
+        if tris.size > 0:  # later vertices follow from the parity of the crossings along the edges
+            state = point_inside(verts[f, 0], points, faces, lo, size, cdims, cstart, citems)
+        nt = 0  # the triangles that reach the face's plane: only they can cross its edges or cut it
+        for q in range(tris.size):
+            if _reaches_plane(tris[q], n, offsets[f], points, faces, margin):
+                near[nt] = tris[q]
+                nt += 1
+        face_tris = near[:nt]
         c = count[f]
         for m in range(c):
             u = (verts[f, m, 0], verts[f, m, 1], verts[f, m, 2])
             q1 = (m + 1) % c
             w = (verts[f, q1, 0], verts[f, q1, 1], verts[f, q1, 2])
-            if tris.size == 0:
-                _accumulate(acc, o, n, u, w)
-                inside_len = 1.0
-            else:
-                if m == 0:  # later vertices follow from the parity of the crossings
-                    state = point_inside(verts[f, 0], points, faces, tlo, tsize, tdims, tstart2, titems2)
-                ncross = segment_crossings(u, w, tris, points, faces, normals, cross)
-                inside_len = 0.0
-                t0 = 0.0
-                for q in range(ncross + 1):
-                    t1 = cross[q] if q < ncross else 1.0
-                    if state and t1 > t0:
-                        _accumulate(acc, o, n, (u[0] + (w[0] - u[0]) * t0, u[1] + (w[1] - u[1]) * t0,
-                                                u[2] + (w[2] - u[2]) * t0),
-                                    (u[0] + (w[0] - u[0]) * t1, u[1] + (w[1] - u[1]) * t1, u[2] + (w[2] - u[2]) * t1))
-                        inside_len += t1 - t0
-                    if q < ncross:
-                        state = not state
-                    t0 = t1
-            if inside_len > 0.0 and label[f] >= 0 and edges[f, m] >= 0:
-                if npair >= max_pair:
-                    return 0, 0, 0.0, 2
-                pair_a[npair] = label[f]
-                pair_b[npair] = edges[f, m]
-                pair_cell[npair] = i
-                npair += 1
-        for q in range(tris.size):
-            t = tris[q]
+            ncross = segment_crossings(u, w, face_tris, points, faces, normals, cross) if nt > 0 else 0
+            inside[f, m] = False
+            t0 = 0.0
+            for q in range(ncross + 1):
+                t1 = cross[q] if q < ncross else 1.0
+                if state and t1 > t0:
+                    a = u if q == 0 else (u[0] + (w[0] - u[0]) * t0, u[1] + (w[1] - u[1]) * t0,
+                                          u[2] + (w[2] - u[2]) * t0)
+                    b = w if q == ncross else (u[0] + (w[0] - u[0]) * t1, u[1] + (w[1] - u[1]) * t1,
+                                               u[2] + (w[2] - u[2]) * t1)
+                    _accumulate(acc, o, n, a, b)
+                    inside[f, m] = True
+                if q < ncross:
+                    state = not state
+                t0 = t1
+        for q in range(nt):
+            t = face_tris[q]
             ok, a, b = _section(t, n, offsets[f], points, faces)
             if not ok:
                 continue
@@ -331,9 +437,26 @@ def _cell(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, 
                     rec_val[nrec, 1 + a] = o[a] + acc[1 + a] / (3.0 * acc[0])
                     rec_val[nrec, 4 + a] = n[a]
                 nrec += 1
+    # two faces along a Voronoi edge that runs inside the mesh: one pair, from the face with the lower label
+    # unless only the other face finds the edge inside (rounding)
+    for f in range(nf):
+        if label[f] < 0:
+            continue
+        for m in range(count[f]):
+            e = edges[f, m]
+            if e < 0 or not inside[f, m] or (label[f] > e and _twin_inside(label, edges, count, inside, nf, e,
+                                                                             label[f])):
+                continue
+            if npair >= max_pair:
+                return 0, 0, 0.0, 2
+            pair_a[npair] = label[f]
+            pair_b[npair] = e
+            pair_cell[npair] = i
+            npair += 1
+    buf = (np.empty((nf + 3, 3)), np.empty((nf + 3, 3)))
+    tri = np.empty((3, 3))
     for q in range(tris.size):
         t = tris[q]
-        tri = np.empty((3, 3))
         for m in range(3):
             tri[m] = points[faces[t, m]]
         poly, k = _clip_polygon(tri, planes, offsets, nf, buf)
@@ -348,9 +471,8 @@ def _cell(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, 
         area = 0.5 * acc[0]
         if not area > 0.0:
             continue
-        cen = np.empty(3)
-        for a in range(3):
-            cen[a] = poly[0, a] + acc[1 + a] / (3.0 * acc[0])
+        cen = (poly[0, 0] + acc[1] / (3.0 * acc[0]), poly[0, 1] + acc[2] / (3.0 * acc[0]),
+               poly[0, 2] + acc[3] / (3.0 * acc[0]))
         volume += area * (normals[t, 0] * cen[0] + normals[t, 1] * cen[1] + normals[t, 2] * cen[2])
         if nrec >= max_rec or npair + 3 > max_pair:
             return 0, 0, 0.0, 2
@@ -376,34 +498,57 @@ def _cell(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, 
 
 
 @njit(cache=True, parallel=True)
-def _batch(first, last, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, faces, normals, tri_adj, tlo, tsize, tdims,
-           tstart, titems, tstart2, titems2, capacity=1):
-    """Cells first..last-1, with ``capacity`` times the default record and pair slots each."""
+def _batch(first, last, rec_label, rec_val, pair_a, pair_b, pair_cell, seeds, start, order, dims, size, lo, hi, bound_n,
+           bound_d, points, faces, normals, tri_adj, tstart, titems, cstart, citems, cdims, margin):
+    """Cells first..last-1 into rows 0..last-first-1 of the record and pair slots (reused from batch to batch).
+
+    Returns the number of records and of pairs, the volume and the status of every cell.
+    """
     nb = last - first
-    rec_label = np.empty((nb, capacity * RECORDS), np.int64)
-    rec_val = np.empty((nb, capacity * RECORDS, 7))
-    pair_a = np.empty((nb, capacity * PAIRS), np.int64)
-    pair_b = np.empty((nb, capacity * PAIRS), np.int64)
-    pair_cell = np.empty((nb, capacity * PAIRS), np.int64)
     nrec = np.zeros(nb, np.int64)
     npair = np.zeros(nb, np.int64)
     volume = np.zeros(nb)
     status = np.zeros(nb, np.int64)
     for q in prange(nb):
         nrec[q], npair[q], volume[q], status[q] = _cell(
-            first + q, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, faces, normals, tri_adj, tlo, tsize, tdims,
-            tstart, titems, tstart2, titems2, rec_label[q], rec_val[q], pair_a[q], pair_b[q], pair_cell[q])
-    return rec_label, rec_val, pair_a, pair_b, pair_cell, nrec, npair, volume, status
+            first + q, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, faces, normals, tri_adj,
+            tstart, titems, cstart, citems, cdims, margin, rec_label[q], rec_val[q], pair_a[q], pair_b[q], pair_cell[q])
+    return nrec, npair, volume, status
+
+
+@njit(cache=True)
+def _gather(first, rec_label, rec_val, pair_a, pair_b, pair_cell, nrec, npair, ok):
+    """The filled slots of the cells where ``ok``: records (cell, label), their values, pairs (cell, a, cell, b)."""
+    nr = 0
+    npr = 0
+    for q in range(nrec.size):
+        if ok[q]:
+            nr += nrec[q]
+            npr += npair[q]
+    recs = np.empty((nr, 2), np.int64)
+    vals = np.empty((nr, 7))
+    pairs = np.empty((npr, 4), np.int64)
+    nr = 0
+    npr = 0
+    for q in range(nrec.size):
+        if not ok[q]:
+            continue
+        for r in range(nrec[q]):
+            recs[nr, 0] = first + q
+            recs[nr, 1] = rec_label[q, r]
+            for a in range(7):
+                vals[nr, a] = rec_val[q, r, a]
+            nr += 1
+        for r in range(npair[q]):
+            pairs[npr, 0] = first + q
+            pairs[npr, 1] = pair_a[q, r]
+            pairs[npr, 2] = pair_cell[q, r]
+            pairs[npr, 3] = pair_b[q, r]
+            npr += 1
+    return recs, vals, pairs
 
 
 # --- assembly ----------------------------------------------------------------------------------------------
-
-
-def _csr(rows: np.ndarray, cols: np.ndarray, n_rows: int) -> tuple[np.ndarray, np.ndarray]:
-    order = np.lexsort((cols, rows))
-    rows, cols = rows[order], cols[order]
-    start = np.searchsorted(rows, np.arange(n_rows + 1)).astype(np.int64)
-    return start, cols.astype(np.int64)
 
 
 def build_shards(seeds: np.ndarray, points: np.ndarray, faces: np.ndarray, *, progress=None) -> ShardGraph:
@@ -440,52 +585,58 @@ def build_shards(seeds: np.ndarray, points: np.ndarray, faces: np.ndarray, *, pr
     if len(np.unique(seeds, axis=0)) != len(seeds):
         raise ValueError("seeds must be distinct; some are repeated")
     points, faces = as_triangle_mesh(points, faces)
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
     partner, others = halfedge_twins(faces, len(points))
     if (others != 1).any():
         raise ValueError(f"the mesh must be closed and manifold: {int((others != 1).sum())} half-edges are on "
                          "the boundary or shared by more than two faces")
-    index = TriangleIndex.build(points, faces)
-    lo = np.minimum(seeds.min(axis=0), index.points.min(axis=0))
-    hi = np.maximum(seeds.max(axis=0), index.points.max(axis=0))
+    lo = np.minimum(seeds.min(axis=0), points.min(axis=0))
+    hi = np.maximum(seeds.max(axis=0), points.max(axis=0))
     pad = 0.01 * float((hi - lo).max()) + 1e-9
     lo, hi = lo - pad, hi + pad
+    margin = 1e-7 * float((hi - lo).max())
     start, order, dims, size = seed_grid(seeds, lo, hi)
-    bound_n, bound_d = _bounding_planes(index.points, margin=1e-7 * float((hi - lo).max()))
+    bound_n, bound_d = _bounding_planes(points, margin=margin)
     tri_adj = np.where(partner >= 0, partner // 3, -1).reshape(-1, 3)
-    args = (seeds, start, order, dims, size, lo, hi, bound_n, bound_d, index.points, index.faces, index.normals,
-            tri_adj, index.lo, index.size, index.dims, index.start, index.items, index.start2, index.items2)
+    # the triangles meeting each bucket of the seed grid, and each (x, y) column of it (for the +z ray)
+    tstart, titems = overlap_grid(points, faces, lo, np.full(3, size), dims, margin)
+    cdims = np.array([dims[0], dims[1], 1])
+    cstart, citems = overlap_grid(points, faces, lo, np.array([size, size, hi[2] - lo[2]]), cdims, margin)
+    args = (seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, faces, unit_normals(points, faces),
+            tri_adj, tstart, titems, cstart, citems, cdims, margin)
     n = len(seeds)
     recs, vals, pairs, volume = [], [], [], np.zeros(n)
 
-    def run(first: int, last: int, capacity: int) -> np.ndarray:
+    def slots(rows: int, capacity: int) -> tuple[np.ndarray, ...]:
+        return (np.empty((rows, capacity * RECORDS), np.int64), np.empty((rows, capacity * RECORDS, 7)),
+                np.empty((rows, capacity * PAIRS), np.int64), np.empty((rows, capacity * PAIRS), np.int64),
+                np.empty((rows, capacity * PAIRS), np.int64))
+
+    def run(first: int, last: int, buffers: tuple[np.ndarray, ...]) -> np.ndarray:
         """Cells first..last-1; keeps the results of those that fit, returns the status per cell."""
-        rl, rv, pa, pb, pc, nrec, npair, vol, status = _batch(first, last, *args, capacity)
+        nrec, npair, vol, status = _batch(first, last, *buffers, *args)
         if (status == 1).any():
             raise RuntimeError(f"a Voronoi cell has more than {MAX_FACES} faces; are seeds nearly coincident?")
         volume[first:last] = vol
-        cells = np.arange(first, last)
-        mask = np.arange(rl.shape[1])[None, :] < nrec[:, None]  # a cell that did not fit has no records
-        recs.append(np.stack([np.broadcast_to(cells[:, None], mask.shape)[mask], rl[mask]], axis=1))
-        vals.append(rv[mask])
-        pmask = np.arange(pa.shape[1])[None, :] < npair[:, None]
-        pairs.append(np.stack([np.broadcast_to(cells[:, None], pmask.shape)[pmask], pa[pmask], pc[pmask],
-                               pb[pmask]], axis=1))
+        r, v, p = _gather(first, *buffers, nrec, npair, status == 0)
+        recs.append(r)
+        vals.append(v)
+        pairs.append(p)
         return status
 
+    buffers = slots(min(_BATCH, n), 1)
     for first in range(0, n, _BATCH):
         last = min(first + _BATCH, n)
-        status = run(first, last, 1)
+        status = run(first, last, buffers)
         for i in np.flatnonzero(status == 2) + first:  # more surface pieces than a batch slot holds: alone, bigger
             capacity = 4
-            while run(i, i + 1, capacity)[0] == 2:
+            while run(i, i + 1, slots(1, capacity))[0] == 2:
                 capacity *= 4
         if progress is not None:
             progress(last - first)
-    recs = np.concatenate(recs)
-    vals = np.concatenate(vals)
-    pairs = np.concatenate(pairs)
-    graph = _assemble(seeds, volume, recs, vals, pairs, n_triangles=len(index.faces), box=(lo, hi))
-    graph.mesh_points, graph.mesh_faces = index.points, index.faces
+    graph = _assemble(seeds, volume, np.concatenate(recs), np.concatenate(vals), np.concatenate(pairs), box=(lo, hi))
+    graph.mesh_points, graph.mesh_faces = points, faces
     return graph
 
 
@@ -502,92 +653,224 @@ def _bounding_planes(points: np.ndarray, *, directions: int = 64, margin: float)
     return np.ascontiguousarray(normals), (points @ normals.T).max(axis=0) + margin
 
 
-def _link_key(cell: np.ndarray, lab: np.ndarray, n: int, n_triangles: int) -> np.ndarray:
-    """Integer key of the link a cell's record labelled ``lab`` belongs to."""
-    interior = lab >= 0
-    a, b = np.minimum(cell, lab), np.maximum(cell, lab)
-    return np.where(interior, a * n + b, n * n + cell * n_triangles + (-1 - lab))
-
-
-def _assemble(seeds, volume, recs, vals, pairs, *, n_triangles, box) -> ShardGraph:
-    n = len(seeds)
-    cell, lab = recs[:, 0], recs[:, 1]
-    keys = _link_key(cell, lab, n, n_triangles)
-    # interior links appear in both cells: keep the record of the lower-numbered cell when it exists
-    prefer = np.where(lab >= 0, (cell > lab).astype(np.int64), 0)
-    order = np.lexsort((prefer, keys))
-    keys_sorted = keys[order]
-    first = np.ones(len(order), bool)
-    first[1:] = keys_sorted[1:] != keys_sorted[:-1]
-    pick = order[first]
-    link_keys = keys[pick]
-    c, lb, v = cell[pick], lab[pick], vals[pick]
-    interior = lb >= 0
-    link_cells = np.stack([c, np.where(interior, lb, -1)], axis=1)
-    # orient interior links from the lower to the higher cell
-    flip = interior & (link_cells[:, 0] > link_cells[:, 1])
-    link_cells[flip] = link_cells[flip][:, ::-1]
-    normal = v[:, 4:7].copy()
-    normal[flip] *= -1.0
-    keep_cell = volume > 0.0
-    # drop links that touch a cell with no volume left (a record of an empty neighbour)
-    ok = keep_cell[link_cells[:, 0]] & np.where(interior, keep_cell[np.maximum(link_cells[:, 1], 0)], True)
-    link_keys, link_cells, v, normal = link_keys[ok], link_cells[ok], v[ok], normal[ok]
-    tri = np.where(link_cells[:, 1] < 0, _triangle_of(link_keys, n, n_triangles), -1)
-    renumber = np.cumsum(keep_cell) - 1
-    link_cells = np.where(link_cells >= 0, renumber[np.maximum(link_cells, 0)], -1)
-    n_cells = int(keep_cell.sum())
-    # links graph: map both ends of every pair to link ids
-    ka = _link_key(pairs[:, 0], pairs[:, 1], n, n_triangles)
-    kb = _link_key(pairs[:, 2], pairs[:, 3], n, n_triangles)
-    ia, ib = _lookup(link_keys, ka), _lookup(link_keys, kb)
-    good = (ia >= 0) & (ib >= 0) & (ia != ib)
-    ia, ib = ia[good], ib[good]
-    link_start, link_neighbours = _symmetric_csr(ia, ib, len(link_keys))
-    inner = np.flatnonzero(link_cells[:, 1] >= 0)
-    rows = np.concatenate([link_cells[inner, 0], link_cells[inner, 1]])
-    cols = np.concatenate([inner, inner])
-    cell_start, cell_links = _csr(rows, cols, n_cells)
-    return ShardGraph(seeds=seeds[keep_cell], volume=volume[keep_cell], link_cells=link_cells.astype(np.int64),
-                      link_triangle=tri.astype(np.int64), link_area=v[:, 0].copy(), link_centroid=v[:, 1:4].copy(),
-                      link_normal=normal, cell_start=cell_start, cell_links=cell_links,
-                      link_start=link_start, link_neighbours=link_neighbours, box=box,
-                      cell_seed=np.flatnonzero(keep_cell), input_seeds=seeds, mesh_points=np.empty((0, 3)),
-                      mesh_faces=np.empty((0, 3), np.int64))
+@njit(cache=True)
+def _group(recs, n):
+    """Records by cell, each cell's sorted by label: (start, index into ``recs``, label), CSR over cells."""
+    start = np.zeros(n + 1, np.int64)
+    for r in range(recs.shape[0]):
+        start[recs[r, 0] + 1] += 1
+    start = np.cumsum(start)
+    fill = start[:-1].copy()
+    index = np.empty(recs.shape[0], np.int64)
+    labels = np.empty(recs.shape[0], np.int64)
+    for r in range(recs.shape[0]):
+        c = recs[r, 0]
+        q = fill[c]  # insertion sort: a cell has a few dozen records
+        while q > start[c] and labels[q - 1] > recs[r, 1]:
+            labels[q] = labels[q - 1]
+            index[q] = index[q - 1]
+            q -= 1
+        labels[q] = recs[r, 1]
+        index[q] = r
+        fill[c] += 1
+    return start, index, labels
 
 
 @njit(cache=True)
+def _find(start, labels, c, lab):
+    """Position of cell ``c``'s record labelled ``lab`` in the grouped records, -1 if it has none."""
+    lo, hi = start[c], start[c + 1]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if labels[mid] < lab:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo if lo < start[c + 1] and labels[lo] == lab else -1
+
+
+@njit(cache=True)
+def _number_links(start, labels, keep):
+    """Links in the order of their keys: interior (a, b), a < b, by a then b; exterior by cell, then triangle.
+
+    Returns, per grouped record, its link (-1 when the link touches a dropped cell), and per link its first and
+    second cell (-1 for exterior), the grouped record that gives its values and whether that record is the
+    second cell's (the normal is then reversed).
+    """
+    n = start.size - 1
+    link_of = np.full(labels.size, -1, np.int64)
+    # an interior link comes from its lower cell's record, or, when the lower cell has none (rounding), the higher's
+    orphan_count = np.zeros(n + 1, np.int64)
+    for c in range(n):
+        for q in range(start[c], start[c + 1]):
+            lab = labels[q]
+            if 0 <= lab < c and keep[c] and keep[lab] and _find(start, labels, lab, c) < 0:
+                orphan_count[lab + 1] += 1
+    orphan_start = np.cumsum(orphan_count)
+    fill = orphan_start[:-1].copy()
+    orphans = np.empty(orphan_start[-1], np.int64)  # grouped records
+    orphan_cell = np.empty(orphan_start[-1], np.int64)
+    for c in range(n):  # in increasing c, so every lower cell's orphans are sorted
+        for q in range(start[c], start[c + 1]):
+            lab = labels[q]
+            if 0 <= lab < c and keep[c] and keep[lab] and _find(start, labels, lab, c) < 0:
+                orphans[fill[lab]] = q
+                orphan_cell[fill[lab]] = c
+                fill[lab] += 1
+    n_links = orphans.size
+    for c in range(n):
+        if keep[c]:
+            for q in range(start[c], start[c + 1]):
+                lab = labels[q]
+                if lab < 0 or (lab > c and keep[lab]):
+                    n_links += 1
+    first = np.empty(n_links, np.int64)
+    second = np.empty(n_links, np.int64)
+    source = np.empty(n_links, np.int64)
+    flip = np.zeros(n_links, np.bool_)
+    k = 0
+    for c in range(n):
+        if not keep[c]:
+            continue
+        q = start[c]
+        o = orphan_start[c]
+        while True:  # merge the cell's own records of higher cells with its orphans
+            while q < start[c + 1] and (labels[q] <= c or not keep[labels[q]]):
+                q += 1
+            own = labels[q] if q < start[c + 1] else -1
+            other = orphan_cell[o] if o < orphan_start[c + 1] else -1
+            if own < 0 and other < 0:
+                break
+            first[k] = c
+            if other < 0 or (0 <= own < other):
+                second[k], source[k] = own, q
+                q += 1
+            else:
+                second[k], source[k], flip[k] = other, orphans[o], True
+                o += 1
+            link_of[source[k]] = k
+            k += 1
+    for c in range(n):
+        if not keep[c]:
+            continue
+        for q in range(start[c + 1] - 1, start[c] - 1, -1):  # labels -1 - t descending: triangles ascending
+            if labels[q] < 0:
+                first[k], second[k], source[k] = c, -1, q
+                link_of[q] = k
+                k += 1
+    for c in range(n):  # the higher cell's records of the other interior links
+        for q in range(start[c], start[c + 1]):
+            lab = labels[q]
+            if 0 <= lab < c and link_of[q] < 0:
+                r = _find(start, labels, lab, c)
+                if r >= 0:
+                    link_of[q] = link_of[r]
+    return link_of, first, second, source, flip
+
+
+@njit(cache=True, inline="always")
+def _link_of(start, labels, link_of, c, lab):
+    """Link of the record labelled ``lab`` of cell ``c``; an interior link may be recorded by the other cell only."""
+    q = _find(start, labels, c, lab)
+    if q < 0 and lab >= 0:
+        q = _find(start, labels, lab, c)
+    return link_of[q] if q >= 0 else -1
+
+
+@njit(cache=True, parallel=True)
+def _pair_links(pairs, start, labels, link_of):
+    """Both links of every neighbour pair (cell, label, cell, label); -1 for a link that does not exist."""
+    ia = np.empty(pairs.shape[0], np.int64)
+    ib = np.empty(pairs.shape[0], np.int64)
+    for q in prange(pairs.shape[0]):
+        ia[q] = _link_of(start, labels, link_of, pairs[q, 0], pairs[q, 1])
+        ib[q] = _link_of(start, labels, link_of, pairs[q, 2], pairs[q, 3])
+    return ia, ib
+
+
+@njit(cache=True, parallel=True)
 def _symmetric_csr(ia, ib, n):
-    """CSR rows of the undirected graph with edges (ia, ib), each neighbour once, sorted."""
+    """CSR rows of the undirected graph with edges (ia, ib), each neighbour once, sorted.
+
+    Edges with a negative end and loops are left out.
+    """
     count = np.zeros(n + 1, np.int64)
     for q in range(ia.size):
-        count[ia[q] + 1] += 1
-        count[ib[q] + 1] += 1
+        if ia[q] >= 0 and ib[q] >= 0 and ia[q] != ib[q]:
+            count[ia[q] + 1] += 1
+            count[ib[q] + 1] += 1
     start = np.cumsum(count)
     fill = start[:-1].copy()
     cols = np.empty(start[-1], np.int64)
     for q in range(ia.size):
-        cols[fill[ia[q]]] = ib[q]
-        fill[ia[q]] += 1
-        cols[fill[ib[q]]] = ia[q]
-        fill[ib[q]] += 1
-    out_start = np.zeros(n + 1, np.int64)
-    k = 0
-    for r in range(n):
-        row = np.sort(cols[start[r]:start[r + 1]])
-        for q in range(row.size):
-            if q == 0 or row[q] != row[q - 1]:
-                cols[k] = row[q]
-                k += 1
-        out_start[r + 1] = k
-    return out_start, cols[:k].copy()
+        if ia[q] >= 0 and ib[q] >= 0 and ia[q] != ib[q]:
+            cols[fill[ia[q]]] = ib[q]
+            fill[ia[q]] += 1
+            cols[fill[ib[q]]] = ia[q]
+            fill[ib[q]] += 1
+    size = np.empty(n + 1, np.int64)
+    size[0] = 0
+    for r in prange(n):  # sort each row in place (insertion: rows are short) and drop repeats
+        lo = start[r]
+        k = lo
+        for q in range(lo, start[r + 1]):
+            v = cols[q]
+            p = k
+            while p > lo and cols[p - 1] > v:
+                p -= 1
+            if p > lo and cols[p - 1] == v:
+                continue
+            for s in range(k, p, -1):
+                cols[s] = cols[s - 1]
+            cols[p] = v
+            k += 1
+        size[r + 1] = k - lo
+    out_start = np.cumsum(size)
+    out = np.empty(out_start[-1], np.int64)
+    for r in prange(n):
+        out[out_start[r]:out_start[r + 1]] = cols[start[r]:start[r] + size[r + 1]]
+    return out_start, out
 
 
-def _triangle_of(keys: np.ndarray, n: int, n_triangles: int) -> np.ndarray:
-    return np.where(keys >= n * n, (keys - n * n) % max(n_triangles, 1), -1)
+@njit(cache=True)
+def _cell_csr(first, second, n_cells):
+    """Cells graph: the interior links of each cell, in increasing order."""
+    count = np.zeros(n_cells + 1, np.int64)
+    for k in range(first.size):
+        if second[k] >= 0:
+            count[first[k] + 1] += 1
+            count[second[k] + 1] += 1
+    start = np.cumsum(count)
+    fill = start[:-1].copy()
+    cols = np.empty(start[-1], np.int64)
+    for k in range(first.size):
+        if second[k] >= 0:
+            cols[fill[first[k]]] = k
+            fill[first[k]] += 1
+            cols[fill[second[k]]] = k
+            fill[second[k]] += 1
+    return start, cols
 
 
-def _lookup(sorted_keys: np.ndarray, keys: np.ndarray) -> np.ndarray:
-    pos = np.searchsorted(sorted_keys, keys)
-    pos = np.minimum(pos, len(sorted_keys) - 1)
-    return np.where(sorted_keys[pos] == keys, pos, -1)
+def _assemble(seeds, volume, recs, vals, pairs, *, box) -> ShardGraph:
+    """The graph from the cells' records (cell, label) with values (area, centroid, normal) and pairs."""
+    n = len(seeds)
+    keep_cell = volume > 0.0
+    start, index, labels = _group(recs, n)
+    link_of, first, second, source, flip = _number_links(start, labels, keep_cell)
+    v = vals[index[source]]
+    normal = v[:, 4:7].copy()
+    normal[flip] *= -1.0
+    triangle = np.where(second < 0, -1 - labels[source], -1)
+    renumber = np.cumsum(keep_cell) - 1
+    link_cells = np.stack([renumber[first], np.where(second >= 0, renumber[np.maximum(second, 0)], -1)], axis=1)
+    n_cells = int(keep_cell.sum())
+    ia, ib = _pair_links(pairs, start, labels, link_of)
+    link_start, link_neighbours = _symmetric_csr(ia, ib, len(first))
+    cell_start, cell_links = _cell_csr(link_cells[:, 0], link_cells[:, 1], n_cells)
+    return ShardGraph(seeds=seeds[keep_cell], volume=volume[keep_cell], link_cells=link_cells.astype(np.int64),
+                      link_triangle=triangle.astype(np.int64), link_area=v[:, 0].copy(), link_centroid=v[:, 1:4].copy(),
+                      link_normal=normal, cell_start=cell_start, cell_links=cell_links,
+                      link_start=link_start, link_neighbours=link_neighbours, box=box,
+                      cell_seed=np.flatnonzero(keep_cell), input_seeds=seeds, mesh_points=np.empty((0, 3)),
+                      mesh_faces=np.empty((0, 3), np.int64))

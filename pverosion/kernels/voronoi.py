@@ -74,81 +74,98 @@ def _crossing(u, w, su, sw):
 def _scratch():
     """Work arrays of :func:`_clip`, allocated once per cell."""
     return (np.empty((MAX_FACE_VERTICES, 3)), np.empty(MAX_FACE_VERTICES, np.int64), np.empty((MAX_FACES, 3)),
-            np.empty((MAX_FACES, 3)), np.empty(MAX_FACES, np.int64), np.empty(MAX_FACES, np.bool_))
+            np.empty((MAX_FACES, 3)), np.empty(MAX_FACES, np.int64), np.empty(MAX_FACES, np.bool_),
+            np.empty((MAX_FACES, MAX_FACE_VERTICES)), np.empty(MAX_FACES, np.int64))
 
 
 @njit(cache=True)
 def _clip(verts, edges, count, label, nf, n, d, new_label, scratch):
     """Keep the part of the cell with n.x <= d; the cut becomes a face labelled ``new_label``.
 
-    Returns the new face count (0 when nothing is left, -1 on overflow).
+    Returns the new face count (0 when nothing is left, -1 on overflow) and
+    whether the plane cut the cell at all.
     """
-    inside_all = True
-    outside_all = True
+    # exit/entry: where a cut face leaves/re-enters; side: signed distance of every vertex, outside: count per face
+    out_v, out_e, exit_pt, entry_pt, cut_label, used, side, outside = scratch
+    nx, ny, nz = n[0], n[1], n[2]
+    total = 0
+    n_out = 0
     for f in range(nf):
+        k = 0
         for m in range(count[f]):
-            s = n[0] * verts[f, m, 0] + n[1] * verts[f, m, 1] + n[2] * verts[f, m, 2] - d
+            s = nx * verts[f, m, 0] + ny * verts[f, m, 1] + nz * verts[f, m, 2] - d
+            side[f, m] = s
             if s > 0.0:
-                inside_all = False
-            else:
-                outside_all = False
-        if not inside_all and not outside_all:
-            break
-    if inside_all:
-        return nf
-    if outside_all:
-        return 0
-    out_v, out_e, exit_pt, entry_pt, cut_label, used = scratch  # exit/entry: where a cut face leaves/re-enters
+                k += 1
+        outside[f] = k
+        n_out += k
+        total += count[f]
+    if n_out == 0:
+        return nf, False
+    if n_out == total:
+        return 0, True
     ncut = 0
     kept = 0
     for f in range(nf):
         c = count[f]
+        if outside[f] == c:  # the whole face is cut away
+            continue
+        if outside[f] == 0:  # the whole face is kept: move it down over the faces cut away
+            if c + 1 > MAX_FACE_VERTICES:
+                return -1, True
+            if kept != f:
+                for m in range(c):
+                    verts[kept, m, 0], verts[kept, m, 1], verts[kept, m, 2] = verts[f, m, 0], verts[f, m, 1], verts[f, m, 2]
+                    edges[kept, m] = edges[f, m]
+                count[kept] = c
+                label[kept] = label[f]
+            kept += 1
+            continue
         k = 0
+        cut = False
         for m in range(c):
-            u = verts[f, m]
-            w = verts[f, (m + 1) % c]
-            su = n[0] * u[0] + n[1] * u[1] + n[2] * u[2] - d
-            sw = n[0] * w[0] + n[1] * w[1] + n[2] * w[2] - d
+            m1 = m + 1 if m + 1 < c else 0
+            su = side[f, m]
+            sw = side[f, m1]
             if k + 2 > MAX_FACE_VERTICES:
-                return -1
+                return -1, True
             if su <= 0.0:
-                out_v[k] = u
+                out_v[k, 0], out_v[k, 1], out_v[k, 2] = verts[f, m, 0], verts[f, m, 1], verts[f, m, 2]
                 out_e[k] = edges[f, m]
                 k += 1
                 if sw > 0.0:
-                    x, y, z = _crossing(u, w, su, sw)
+                    x, y, z = _crossing((verts[f, m, 0], verts[f, m, 1], verts[f, m, 2]),
+                                        (verts[f, m1, 0], verts[f, m1, 1], verts[f, m1, 2]), su, sw)
                     out_v[k, 0], out_v[k, 1], out_v[k, 2] = x, y, z
                     out_e[k] = new_label
                     exit_pt[ncut, 0], exit_pt[ncut, 1], exit_pt[ncut, 2] = x, y, z
+                    cut = True
                     k += 1
             elif sw <= 0.0:
-                x, y, z = _crossing(u, w, su, sw)
+                x, y, z = _crossing((verts[f, m, 0], verts[f, m, 1], verts[f, m, 2]),
+                                    (verts[f, m1, 0], verts[f, m1, 1], verts[f, m1, 2]), su, sw)
                 out_v[k, 0], out_v[k, 1], out_v[k, 2] = x, y, z
                 out_e[k] = edges[f, m]
                 entry_pt[ncut, 0], entry_pt[ncut, 1], entry_pt[ncut, 2] = x, y, z
                 k += 1
         if k >= 3:
-            cut = False
-            for m in range(k):
-                if out_e[m] == new_label:
-                    cut = True
             if cut:
                 cut_label[ncut] = label[f]
                 ncut += 1
             for m in range(k):
-                verts[kept, m] = out_v[m]
+                verts[kept, m, 0], verts[kept, m, 1], verts[kept, m, 2] = out_v[m, 0], out_v[m, 1], out_v[m, 2]
                 edges[kept, m] = out_e[m]
             count[kept] = k
             label[kept] = label[f]
             kept += 1
     if ncut < 3 or kept >= MAX_FACES or ncut > MAX_FACE_VERTICES:
-        return kept if ncut < 3 else -1
+        return (kept if ncut < 3 else -1), True
     # the cap runs entry -> exit along each cut face, reversed; chain exit of one to entry of the next
     used[:ncut] = False
     cur = 0
     for m in range(ncut):
         used[cur] = True
-        verts[kept, m] = entry_pt[cur]
+        verts[kept, m, 0], verts[kept, m, 1], verts[kept, m, 2] = entry_pt[cur, 0], entry_pt[cur, 1], entry_pt[cur, 2]
         edges[kept, m] = cut_label[cur]
         best = -1
         best_d = np.inf
@@ -165,7 +182,7 @@ def _clip(verts, edges, count, label, nf, n, d, new_label, scratch):
         cur = best
     count[kept] = ncut
     label[kept] = new_label
-    return kept + 1
+    return kept + 1, True
 
 
 def seed_grid(seeds: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -239,10 +256,11 @@ def cell_polygons(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d):
             for h in range(bound_d.size):
                 dist = bound_d[h] - (bound_n[h, 0] * p[0] + bound_n[h, 1] * p[1] + bound_n[h, 2] * p[2])
                 if dist < 0.0 or dist * dist < r2:
-                    nf = _clip(verts, edges, count, label, nf, bound_n[h], bound_d[h], -7 - h, scratch)
+                    nf, cut = _clip(verts, edges, count, label, nf, bound_n[h], bound_d[h], -7 - h, scratch)
                     if nf <= 0:  # nothing of the cell is within the bounds (0), or capacity exceeded (-1)
                         return verts, edges, count, label, nf
-                    r2 = _max_radius2(verts, count, nf, p)
+                    if cut:
+                        r2 = _max_radius2(verts, count, nf, p)
         if ring >= 2 and ((ring - 1) * size) ** 2 > 4.0 * r2:
             break
         for dk in range(-ring, ring + 1):
@@ -282,9 +300,10 @@ def cell_polygons(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d):
                             continue
                         d = 0.5 * (n[0] * (seeds[j, 0] + p[0]) + n[1] * (seeds[j, 1] + p[1])
                                    + n[2] * (seeds[j, 2] + p[2]))
-                        nf = _clip(verts, edges, count, label, nf, n, d, j, scratch)
-                        if nf <= 0:
-                            return verts, edges, count, label, -1
-                        r2 = _max_radius2(verts, count, nf, p)
+                        nf, cut = _clip(verts, edges, count, label, nf, n, d, j, scratch)
+                        if nf <= 0:  # capacity exceeded (-1), or nothing left of a cell the bounds cut off its seed (0)
+                            return verts, edges, count, label, nf
+                        if cut:
+                            r2 = _max_radius2(verts, count, nf, p)
         ring += 1
     return verts, edges, count, label, nf
