@@ -37,9 +37,8 @@ from pverosion.kernels.shards import (
     ShardGraph,
     _bounding_planes,
     _clip_polygon,
-    _clip_segment,
+    _face_section,
     _plane,
-    _section,
 )
 from pverosion.kernels.voronoi import cell_polygons, seed_grid
 
@@ -617,16 +616,8 @@ def _cell_links(seed, seeds, start, order, dims, size, lo, hi, bound_n, bound_d,
             # the sections of the mesh triangles, inside on the left, clipped to the face
             for q in range(tris.size):
                 t = tris[q]
-                ok, a, b = _section(t, n, offsets[f], points, faces)
+                ok, a, b = _face_section(t, f, planes, offsets, nf, points, faces, normals)
                 if not ok:
-                    continue
-                dx = n[1] * normals[t, 2] - n[2] * normals[t, 1]
-                dy = n[2] * normals[t, 0] - n[0] * normals[t, 2]
-                dz = n[0] * normals[t, 1] - n[1] * normals[t, 0]
-                if (b[0] - a[0]) * dx + (b[1] - a[1]) * dy + (b[2] - a[2]) * dz < 0.0:
-                    a, b = b, a
-                ok, a, b = _clip_segment(a, b, planes, offsets, nf, f)
-                if not ok or a == b:
                     continue
                 seg = _push(seg, nseg, a, b)
                 nseg += 1

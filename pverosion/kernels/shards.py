@@ -228,6 +228,25 @@ def _section(t, n, d, points, faces):
 
 
 @njit(cache=True)
+def _face_section(t, f, planes, offsets, nf, points, faces, normals):
+    """Where triangle t crosses face f of a cell: (ok, a, b), inside the mesh on the left, clipped to the cell.
+
+    The region's boundary keeps the inside on its left: it runs along (face normal) x (triangle normal).
+    """
+    n = planes[f]
+    ok, a, b = _section(t, n, offsets[f], points, faces)
+    if not ok:
+        return False, a, b
+    dx = n[1] * normals[t, 2] - n[2] * normals[t, 1]
+    dy = n[2] * normals[t, 0] - n[0] * normals[t, 2]
+    dz = n[0] * normals[t, 1] - n[1] * normals[t, 0]
+    if (b[0] - a[0]) * dx + (b[1] - a[1]) * dy + (b[2] - a[2]) * dz < 0.0:
+        a, b = b, a
+    ok, a, b = _clip_segment(a, b, planes, offsets, nf, f)
+    return ok and a != b, a, b
+
+
+@njit(cache=True)
 def _near_triangles(verts, count, nf, planes, offsets, bmin, bmax, points, faces, normals, lo, size, dims, start, items,
                     margin):
     """Sorted mesh triangles that may meet the cell: all that do, and perhaps a few that pass within ``margin``.
@@ -401,17 +420,8 @@ def _cell(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, 
                 t0 = t1
         for q in range(nt):
             t = face_tris[q]
-            ok, a, b = _section(t, n, offsets[f], points, faces)
+            ok, a, b = _face_section(t, f, planes, offsets, nf, points, faces, normals)
             if not ok:
-                continue
-            # the region's boundary keeps the inside on its left: along n x (triangle normal)
-            dx = n[1] * normals[t, 2] - n[2] * normals[t, 1]
-            dy = n[2] * normals[t, 0] - n[0] * normals[t, 2]
-            dz = n[0] * normals[t, 1] - n[1] * normals[t, 0]
-            if (b[0] - a[0]) * dx + (b[1] - a[1]) * dy + (b[2] - a[2]) * dz < 0.0:
-                a, b = b, a
-            ok, a, b = _clip_segment(a, b, planes, offsets, nf, f)
-            if not ok or a == b:
                 continue
             _accumulate(acc, o, n, a, b)
             if label[f] >= 0:
