@@ -12,48 +12,30 @@ scans stay fixed. After every step, triangles with an edge shorter than
 ``min_edge_ratio * e_avg`` are removed by edge collapse
 (:mod:`pverosion.kernels.remesh`).
 
-Self-intersection guard (periodic, with rollback): every ``check_every``
-steps, and at every step the caller asks to see, the mesh is tested for
-intersecting non-adjacent triangles
-(:func:`pverosion.kernels.intersection.intersecting_faces`). A clean mesh
-becomes the new restart point. When intersections have appeared, the solver
-restores the last clean state, halves the displacement length of the
-vertices of the intersecting faces and of their two-ring neighbourhood, and
-redoes the steps (the paper's "restart with shorter displacements", applied
-where the mesh tangled instead of everywhere, so the rest of the model keeps
-its pace). The halving is kept for the rest of the run; a vertex halved more
-than ``max_halvings`` times is frozen (it stops moving and is never
-collapsed), which settles the sharp folds of noisy scans where any step
-tangles the surface. ``retries`` counts the rollbacks, ``frozen`` the frozen
-vertices. A full check costs a few steps' worth of time on the bunny scan,
+Self-intersection guard with rollback and local shortening of the steps, and
+the mesh improvement, come from
+:class:`~pverosion.kernels.mesh_evolution.GuardedMeshSolver`; a vertex frozen
+by the guard settles the sharp folds of noisy scans where any step tangles the
+surface. A full check costs a few steps' worth of time on the bunny scan,
 which is why it is periodic rather than per step.
 """
 
 from __future__ import annotations
 
 import time
-import warnings
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from collections.abc import Callable
 
 import numpy as np
-import scipy.sparse as sp
 from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
-from pverosion.kernels._scatter import CHUNKS, chunk_range
-from pverosion.kernels.curvature import CurvatureOperator
-from pverosion.kernels.geometry import average_edge_length, vertex_normals
-from pverosion.kernels.intersection import intersecting_faces, spatial_order
+from pverosion.kernels.geometry import average_edge_length
 from pverosion.kernels.laplacian import laplacian_vectors
 from pverosion.kernels.materials import MaterialField
+from pverosion.kernels.mesh_evolution import GuardedMeshSolver, volume_area
 from pverosion.kernels.normalize import normalize_symmetric
-from pverosion.kernels.orientation import ORIENTATIONS, orient_faces
-from pverosion.kernels.remesh import collapse_short_edges, short_edge_candidates
-from pverosion.kernels.topology import edge_topology, one_ring
-from pverosion.kernels.validation import as_triangle_mesh
 
-__all__ = ["DIRECTIONS", "STAT_NAMES", "WeatheringSolver"]
+__all__ = ["DIRECTIONS", "STAT_NAMES", "WeatheringSolver", "check_erodibility", "erodibility_now"]
 
 DIRECTIONS = ("laplacian", "normal")
 """Accepted values of the ``direction`` option."""
@@ -65,26 +47,6 @@ FLAT = 1e-9
 """Vertices with ``H * e_avg <= FLAT`` count as flat (a radius above 10⁹ edge lengths)."""
 
 Erodibility = np.ndarray | Callable[[np.ndarray], np.ndarray] | MaterialField | None
-
-
-@njit(cache=True, error_model="numpy", parallel=True)
-def _volume_area(points, faces, origin):
-    """Enclosed volume and area; summed in fixed face chunks, so bit-identical for any thread count."""
-    partial = np.zeros((CHUNKS, 2))
-    for c in prange(CHUNKS):
-        lo, hi = chunk_range(faces.shape[0], c)
-        for f in range(lo, hi):
-            a = v3.sub(v3.row(points, faces[f, 0]), (origin[0], origin[1], origin[2]))
-            b = v3.sub(v3.row(points, faces[f, 1]), (origin[0], origin[1], origin[2]))
-            cc = v3.sub(v3.row(points, faces[f, 2]), (origin[0], origin[1], origin[2]))
-            partial[c, 0] += v3.dot(a, v3.cross(b, cc))
-            partial[c, 1] += v3.norm(v3.cross(v3.sub(b, a), v3.sub(cc, a)))
-    volume = 0.0
-    area = 0.0
-    for c in range(CHUNKS):
-        volume += partial[c, 0]
-        area += partial[c, 1]
-    return volume / 6.0, area / 2.0
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
@@ -110,20 +72,7 @@ def _displace(points, direction, unit, h_norm, h_raw, e_avg, power, length, fact
     return out
 
 
-@dataclass
-class _State:
-    """Everything a rollback restores."""
-
-    points: np.ndarray
-    faces: np.ndarray
-    ids: np.ndarray
-    displacement: np.ndarray
-    step: int
-    collapses: int
-    stats: list = field(default_factory=list)
-
-
-class WeatheringSolver:
+class WeatheringSolver(GuardedMeshSolver):
     """Curvature-driven weathering that builds topology once and steps cheaply.
 
     Parameters
@@ -147,30 +96,14 @@ class WeatheringSolver:
         (:mod:`pverosion.kernels.materials`, erodibility = 1 / hardness), the
         last two evaluated every step so that erosion follows the material
         under each vertex *now*.
-    min_edge_ratio : float, default: 0.1
-        Mesh improvement: collapse edges shorter than ``min_edge_ratio *
-        e_avg`` after every step; 0 switches it off.
-    check_every : int, default: 10
-        Self-intersection guard period in steps; 0 switches the guard off.
-    max_halvings : int, default: 4
-        Freeze a vertex whose displacement had to be halved more than this
-        many times.
-    orientation : {"outward", "inward", "keep"}, default: "outward"
+    min_edge_ratio, check_every, max_halvings, orientation
+        Mesh improvement and self-intersection guard, see
+        :class:`~pverosion.kernels.mesh_evolution.GuardedMeshSolver`.
 
     Attributes
     ----------
-    points, faces : numpy.ndarray
-        Current mesh.
-    ids : numpy.ndarray, shape (V',)
-        Input index of every current vertex (collapses remove vertices).
-    displacement : numpy.ndarray, shape (V', 3)
-        Cumulative weathering displacement of every current vertex.
-    initial_normals : numpy.ndarray, shape (V, 3)
-        Outward unit normals of the input vertices (index with ``ids``).
-    step_count : int
-        Steps done (time).
-    retries : int
-        Rollbacks made by the self-intersection guard.
+    points, faces, ids, displacement, initial_normals, step_count, retries, collapses
+        As for :class:`~pverosion.kernels.mesh_evolution.GuardedMeshSolver`.
     profile : dict or None
         Set it to ``{}`` to collect the seconds spent per part of each step
         ("curvature", "laplacian", "displacement", "improvement" with the
@@ -186,6 +119,9 @@ class WeatheringSolver:
     5
     """
 
+    STAT_NAMES = STAT_NAMES
+    PROGRESS_LABEL = "weathering"
+
     def __init__(
         self,
         points,
@@ -200,144 +136,27 @@ class WeatheringSolver:
         max_halvings: int = 4,
         orientation: str = "outward",
     ) -> None:
-        pts, fcs = as_triangle_mesh(points, faces)
         if not (np.isfinite(power) and power >= 1.0):
             raise ValueError(f"power must be a real number >= 1; got {power!r}")
         if not (np.isfinite(step_divisor) and step_divisor > 0.0):
             raise ValueError(f"step_divisor must be > 0; got {step_divisor!r}")
         if direction not in DIRECTIONS:
             raise ValueError(f"direction must be one of {DIRECTIONS}; got {direction!r}")
-        if not (np.isfinite(min_edge_ratio) and 0.0 <= min_edge_ratio < 1.0):
-            raise ValueError(f"min_edge_ratio must be in [0, 1); got {min_edge_ratio!r}")
-        if int(check_every) != check_every or check_every < 0:
-            raise ValueError(f"check_every must be an integer >= 0; got {check_every!r}")
-        if int(max_halvings) != max_halvings or max_halvings < 0:
-            raise ValueError(f"max_halvings must be an integer >= 0; got {max_halvings!r}")
-        if orientation not in ORIENTATIONS:
-            raise ValueError(f"orientation must be one of {ORIENTATIONS}; got {orientation!r}")
+        super().__init__(points, faces, min_edge_ratio=min_edge_ratio, check_every=check_every,
+                         max_halvings=max_halvings, orientation=orientation)
         self.power = float(power)
         self.step_divisor = float(step_divisor)
         self.direction = direction
-        self.min_edge_ratio = float(min_edge_ratio)
-        self.check_every = int(check_every)
-        self.max_halvings = int(max_halvings)
-        self._erodibility = self._check_erodibility(erodibility, len(pts))
-        self.points = pts.copy()
-        self.faces = orient_faces(pts, fcs, mode=orientation).faces
-        self.ids = np.arange(len(pts))
-        self.displacement = np.zeros_like(pts)
-        self.step_count = 0
-        self.retries = 0
-        self.collapses = 0
-        self.profile: dict[str, list[float]] | None = None
-        self._scale = np.ones(len(pts))  # displacement length factor per input vertex
-        self._origin = pts.mean(axis=0)
-        self._build_topology()
-        self.initial_normals = vertex_normals(self.points, self.faces, weighting="area")
-        volume, _ = _volume_area(self.points, self.faces, self._origin)
-        self._volume0 = float(volume)
-        self._stats: list[tuple] = [self._row(self._curvature(self.points).mean)]
-        self._baseline = 0
-        if self.check_every:
-            self._baseline = int(np.count_nonzero(self._intersections()))
-            if self._baseline:
-                warnings.warn(
-                    f"the input mesh already has {self._baseline} self-intersecting faces; "
-                    "the guard only rejects steps that add more",
-                    RuntimeWarning,
-                    stacklevel=2,
-                )
-        self._clean = self._snapshot()
+        self._erodibility = check_erodibility(erodibility, len(self.points))
+        self._start()
 
-    # -- setup -------------------------------------------------------------------------
-
-    @staticmethod
-    def _check_erodibility(erodibility: Erodibility, n_vertices: int):
-        if erodibility is None or callable(erodibility) or isinstance(erodibility, MaterialField):
-            return erodibility
-        values = np.asarray(erodibility, dtype=np.float64)
-        if values.shape != (n_vertices,):
-            raise ValueError(f"erodibility must have shape ({n_vertices},) (one value per vertex); got {values.shape}")
-        if not np.all(np.isfinite(values)) or np.any(values < 0):
-            raise ValueError("erodibility must be finite and non-negative")
-        return values.copy()
-
-    def _erodibility_now(self) -> np.ndarray:
-        """Erodibility (V',) of the current vertices (an erodibility is set)."""
-        if isinstance(self._erodibility, MaterialField):
-            return self._erodibility.erodibility(self.points, ids=self.ids)
-        if callable(self._erodibility):
-            values = np.asarray(self._erodibility(self.points.copy()), dtype=np.float64)
-            if values.shape != (len(self.points),):
-                raise ValueError(
-                    f"erodibility callable must return shape ({len(self.points)},); got {values.shape}"
-                )
-            if not np.all(np.isfinite(values)) or np.any(values < 0):
-                raise ValueError("erodibility callable returned negative or non-finite values")
-            return values
-        return self._erodibility[self.ids]
-
-    def _build_topology(self) -> None:
-        """Everything that depends on the faces only; rebuilt after edge collapses."""
-        n = len(self.points)
-        self._curvature = CurvatureOperator(self.faces, n)
-        topo = edge_topology(self.faces, n)
-        self._ring = one_ring(self.faces, n, edges=topo.edges)
-        self._edges = topo.edges
-        self._usable = topo.face_count == 2
-        self._fixed = topo.irregular_vertices(n)
-        self._order = None  # spatial face order of the intersection check, made on first use
-
-    # -- state -------------------------------------------------------------------------
-
-    def _snapshot(self) -> _State:
-        return _State(self.points.copy(), self.faces.copy(), self.ids.copy(), self.displacement.copy(),
-                      self.step_count, self.collapses, list(self._stats))
-
-    def _restore(self, state: _State) -> None:
-        faces_changed = len(state.faces) != len(self.faces) or not np.array_equal(state.faces, self.faces)
-        self.points = state.points.copy()
-        self.faces = state.faces.copy()
-        self.ids = state.ids.copy()
-        self.displacement = state.displacement.copy()
-        self.step_count = state.step
-        self.collapses = state.collapses
-        self._stats = list(state.stats)
-        if faces_changed:
-            self._build_topology()
-
-    def _intersections(self, query: np.ndarray | None = None) -> np.ndarray:
-        """Mask (F,) of the faces meeting a non-adjacent face (in pairs with a ``query`` face)."""
-        if self._order is None:
-            self._order = spatial_order(self.points, self.faces)
-        return intersecting_faces(self.points, self.faces, query=query, order=self._order)
-
-    def _moved_faces(self) -> np.ndarray | None:
-        """Faces with a vertex moved since the restart point, when no collapse happened since."""
-        clean = self._clean
-        if self._baseline or len(clean.faces) != len(self.faces) or not np.array_equal(clean.faces, self.faces):
-            return None  # a self-intersecting input is always compared whole against its baseline
-        moved = np.any(self.points != clean.points, axis=1)
-        return moved[self.faces].any(axis=1)
-
-    def _row(self, mean_curvature: np.ndarray) -> tuple:
-        volume, area = _volume_area(self.points, self.faces, self._origin)
+    def _row(self, mean_curvature: np.ndarray | None = None) -> tuple:
+        if mean_curvature is None:
+            mean_curvature = self.mean_curvature()
+        volume, area = volume_area(self.points, self.faces, self._origin)
         abs_h = np.abs(mean_curvature)
         return (float(volume), float(area), float(abs_h.mean()), float(abs_h.max()),
                 self._volume0 - float(volume), self.retries, self.collapses)
-
-    # -- stepping ----------------------------------------------------------------------
-
-    def mean_curvature(self) -> np.ndarray:
-        """Mean curvature H (V',) of the current mesh."""
-        return self._curvature(self.points).mean
-
-    def _lap(self, part: str, start: float) -> float:
-        """Add the time since ``start`` to :attr:`profile` (when profiling) and restart the clock."""
-        now = time.perf_counter()
-        if self.profile is not None:
-            self.profile.setdefault(part, []).append(now - start)
-        return now
 
     def _step(self) -> None:
         clock = time.perf_counter()
@@ -352,7 +171,7 @@ class WeatheringSolver:
         e_avg = average_edge_length(self.points, self.faces, edges=self._edges)
         factor = self._scale[self.ids]
         if self._erodibility is not None:
-            factor *= self._erodibility_now()
+            factor *= erodibility_now(self._erodibility, self.points, self.ids)
         self.points = _displace(self.points, direction, self.direction == "laplacian", normalize_symmetric(h), h,
                                 e_avg, self.power, e_avg / self.step_divisor, factor, self._fixed, self.displacement)
         clock = self._lap("displacement", clock)
@@ -362,114 +181,28 @@ class WeatheringSolver:
         self._stats.append(self._row(h))
         self._lap("improvement", clock)
 
-    def _improve(self, min_length: float) -> None:
-        candidates = short_edge_candidates(self.points, self._edges, self._usable, min_length)
-        if len(candidates) == 0:
-            return
-        result = collapse_short_edges(self.points, self.faces, candidates, self._fixed | (self._scale[self.ids] == 0.0))
-        if result.n_collapsed == 0:
-            return
-        self.points, self.faces = result.points, result.faces
-        self.ids = self.ids[result.kept]
-        self.displacement = self.displacement[result.kept]
-        self.collapses += result.n_collapsed
-        self._build_topology()
 
-    def run(
-        self,
-        iterations: int,
-        *,
-        outputs: Iterable[int] = (),
-        callback: Callable[[WeatheringSolver], None] | None = None,
-        on_step: Callable[[WeatheringSolver], None] | None = None,
-        progress: bool = False,
-    ) -> None:
-        """Advance ``iterations`` steps.
+def check_erodibility(erodibility: Erodibility, n_vertices: int):
+    """Validated erodibility: None, a callable, a MaterialField, or a copy of an array (V,) of values >= 0."""
+    if erodibility is None or callable(erodibility) or isinstance(erodibility, MaterialField):
+        return erodibility
+    values = np.asarray(erodibility, dtype=np.float64)
+    if values.shape != (n_vertices,):
+        raise ValueError(f"erodibility must have shape ({n_vertices},) (one value per vertex); got {values.shape}")
+    if not np.all(np.isfinite(values)) or np.any(values < 0):
+        raise ValueError("erodibility must be finite and non-negative")
+    return values.copy()
 
-        Parameters
-        ----------
-        iterations : int
-            Number of steps to add (>= 0).
-        outputs : iterable of int
-            Step numbers (absolute times) at which ``callback`` is called. The
-            guard checks the mesh before each of them, so every state handed
-            out is free of new self-intersections. The last step is always
-            checked.
-        callback : callable, optional
-            ``callback(solver)`` at every output step.
-        on_step : callable, optional
-            ``on_step(solver)`` after every accepted step (progress reports).
-        progress : bool, default: False
-            Show a tqdm progress bar.
-        """
-        if int(iterations) != iterations or iterations < 0:
-            raise ValueError(f"iterations must be an integer >= 0; got {iterations!r}")
-        target = self.step_count + int(iterations)
-        wanted = {int(s) for s in outputs}
-        bar = None
-        if progress:
-            from tqdm.auto import tqdm
 
-            bar = tqdm(total=int(iterations), desc="weathering", unit="step")
-        try:
-            done = self.step_count
-            while self.step_count < target:
-                self._step()
-                at_output = self.step_count in wanted
-                if self._due(at_output or self.step_count == target) and not self._accept():
-                    continue
-                if bar is not None and self.step_count > done:
-                    bar.update(self.step_count - done)
-                    bar.set_postfix(retries=self.retries, collapses=self.collapses)
-                    done = self.step_count
-                if on_step is not None:
-                    on_step(self)
-                if at_output and callback is not None:
-                    callback(self)
-        finally:
-            if bar is not None:
-                bar.close()
-
-    def _due(self, forced: bool) -> bool:
-        if not self.check_every:
-            return False
-        return forced or self.step_count - self._clean.step >= self.check_every
-
-    def _accept(self) -> bool:
-        """Check the mesh; keep it as the restart point, or roll back and shorten local steps."""
-        clock = time.perf_counter()
-        # faces that both kept their place were clean at the restart point and still are
-        hits = self._intersections(self._moved_faces())
-        self._lap("guard", clock)
-        if np.count_nonzero(hits) <= self._baseline:
-            self._clean = self._snapshot()
-            return True
-        # halve the steps of the tangled faces' vertices and their two-ring neighbourhood
-        near = np.zeros(len(self.points))
-        near[self.faces[hits].ravel()] = 1.0
-        ring_ptr, ring_idx = self._ring
-        pattern = sp.csr_matrix((np.ones(len(ring_idx)), ring_idx, ring_ptr), shape=(len(near), len(near)))
-        near = near + pattern @ near
-        near = near + pattern @ near
-        ids = self.ids[near > 0]
-        if not np.any(self._scale[ids] > 0.0):
-            raise RuntimeError(
-                f"self-intersections appeared after step {self._clean.step} next to frozen vertices only; "
-                "switch mesh improvement off (min_edge_ratio=0) or repair the input"
-            )
-        self._scale[ids] *= 0.5
-        self._scale[self._scale < 0.5**self.max_halvings] = 0.0
-        self.retries += 1
-        self._restore(self._clean)
-        return False
-
-    @property
-    def frozen(self) -> int:
-        """Number of current vertices frozen by the self-intersection guard."""
-        return int(np.count_nonzero(self._scale[self.ids] == 0.0))
-
-    @property
-    def statistics(self) -> dict[str, np.ndarray]:
-        """Per-step statistics, one array per name of :data:`STAT_NAMES` (step 0 first)."""
-        table = np.array(self._stats, dtype=np.float64).reshape(-1, len(STAT_NAMES))
-        return {name: table[:, k] for k, name in enumerate(STAT_NAMES)}
+def erodibility_now(erodibility: Erodibility, points: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """Erodibility (V',) of the current vertices ``points`` (V', 3) with input indices ``ids`` (V',)."""
+    if isinstance(erodibility, MaterialField):
+        return erodibility.erodibility(points, ids=ids)
+    if callable(erodibility):
+        values = np.asarray(erodibility(points.copy()), dtype=np.float64)
+        if values.shape != (len(points),):
+            raise ValueError(f"erodibility callable must return shape ({len(points)},); got {values.shape}")
+        if not np.all(np.isfinite(values)) or np.any(values < 0):
+            raise ValueError("erodibility callable returned negative or non-finite values")
+        return values
+    return erodibility[ids]
