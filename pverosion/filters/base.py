@@ -18,7 +18,7 @@ import numpy as np
 from vtkmodules.util import numpy_support
 from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
 from vtkmodules.vtkCommonCore import vtkIdTypeArray, vtkObject, vtkStringArray
-from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkMultiBlockDataSet, vtkPolyData
 from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline as SDDP
 
 from pverosion.kernels.validation import InvalidMeshError
@@ -31,6 +31,7 @@ __all__ = [
     "polydata_triangles",
     "replace_triangles",
     "set_field_value",
+    "set_multiblock",
     "set_point_array",
 ]
 
@@ -384,6 +385,16 @@ def replace_triangles(mesh: vtkPolyData, faces: np.ndarray) -> None:
     cells = vtkCellArray()
     cells.SetData(offsets, connectivity)
     mesh.SetPolys(cells)
+
+
+def set_multiblock(out, blocks) -> None:
+    """Fill vtkMultiBlockDataSet ``out`` with the named ``blocks`` (a pyvista.MultiBlock), in order."""
+    result = vtkMultiBlockDataSet()
+    result.SetNumberOfBlocks(len(blocks))
+    for index, name in enumerate(blocks.keys()):
+        result.SetBlock(index, blocks[name])
+        result.GetMetaData(index).Set(vtkMultiBlockDataSet.NAME(), name)
+    out.ShallowCopy(result)
 
 
 def set_point_array(mesh, name: str, values: np.ndarray) -> None:

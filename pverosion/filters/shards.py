@@ -27,9 +27,16 @@ import math
 
 import numpy as np
 import pyvista as pv
-from vtkmodules.vtkCommonDataModel import vtkImageData, vtkMultiBlockDataSet
+from vtkmodules.vtkCommonDataModel import vtkImageData
 
-from pverosion.filters.base import ErosionFilter, Param, TimeSteppedFilter, polydata_triangles, set_field_value
+from pverosion.filters.base import (
+    ErosionFilter,
+    Param,
+    TimeSteppedFilter,
+    polydata_triangles,
+    set_field_value,
+    set_multiblock,
+)
 from pverosion.filters.materials import parse_numbers
 from pverosion.kernels.freeze_thaw import CORE, FreezeThawParameters, FreezeThawSimulation, PathRecord
 from pverosion.kernels.geometry import signed_volume
@@ -206,15 +213,6 @@ def _path_lines(graph: Graph, record: PathRecord) -> pv.PolyData:
     return out.clean(point_merging=False)
 
 
-def _multiblock(out, blocks: pv.MultiBlock) -> None:
-    result = vtkMultiBlockDataSet()
-    result.SetNumberOfBlocks(len(blocks))
-    for index, name in enumerate(blocks.keys()):
-        result.SetBlock(index, blocks[name])
-        result.GetMetaData(index).Set(vtkMultiBlockDataSet.NAME(), name)
-    out.ShallowCopy(result)
-
-
 class _ShardSource:
     """Generation shared by both filters: seeds from the options, the graph cached per input and options."""
 
@@ -256,7 +254,7 @@ class ShardGraph(_ShardSource, ErosionFilter):
         graph = self._graph(inp)
         blocks = shard_blocks(graph, links=self._links)
         _statistics(blocks["surface"], graph, np.ones(graph.n_cells, bool), graph.exterior, paths=0, breaks=0)
-        _multiblock(out, blocks)
+        set_multiblock(out, blocks)
 
 
 def _statistics(surface, graph: Graph, solid: np.ndarray, exterior: np.ndarray, *, paths: int, breaks: int) -> None:
@@ -402,5 +400,5 @@ class FreezeThaw(_ShardSource, TimeSteppedFilter):
         if self.get_option("record_paths"):
             blocks["paths"] = _path_lines(graph, record) if record is not None else pv.PolyData()
         _statistics(blocks["surface"], graph, sim.solid, sim.exterior, paths=sim.paths, breaks=sim.n_breaks)
-        _multiblock(out, blocks)
+        set_multiblock(out, blocks)
         out.GetInformation().Set(out.DATA_TIME_STEP(), float(step))

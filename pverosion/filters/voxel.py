@@ -17,9 +17,9 @@ from __future__ import annotations
 import numpy as np
 import pyvista as pv
 from vtkmodules.util import numpy_support
-from vtkmodules.vtkCommonDataModel import vtkImageData, vtkMultiBlockDataSet
+from vtkmodules.vtkCommonDataModel import vtkImageData
 
-from pverosion.filters.base import Param, TimeSteppedFilter, polydata_triangles, set_field_value
+from pverosion.filters.base import Param, TimeSteppedFilter, polydata_triangles, set_field_value, set_multiblock
 from pverosion.filters.materials import grid_points, parse_numbers
 from pverosion.kernels.materials import MaterialField
 from pverosion.kernels.pressure import LIQUID
@@ -377,12 +377,7 @@ class VoxelErosion(TimeSteppedFilter):
             self.UpdateProgress((solver.step_count - start) / max(step - start, 1))
         state = self._state(inp, solver)
         surface = extract_material_surface(state, method=self.get_option("extraction"))
-        blocks = vtkMultiBlockDataSet()
-        blocks.SetNumberOfBlocks(2)
-        for index, (name, data) in enumerate((("state", state), ("surface", surface))):
-            blocks.SetBlock(index, data)
-            blocks.GetMetaData(index).Set(vtkMultiBlockDataSet.NAME(), name)
-        out.ShallowCopy(blocks)
+        set_multiblock(out, pv.MultiBlock({"state": state, "surface": surface}))
         out.GetInformation().Set(out.DATA_TIME_STEP(), float(step))
 
     def _state(self, inp, solver: VoxelErosionSolver) -> pv.ImageData:

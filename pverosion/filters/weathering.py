@@ -14,20 +14,22 @@ from pverosion.filters.base import (
     set_field_value,
     set_point_array,
 )
+from pverosion.kernels.mesh_evolution import GuardedMeshSolver
 from pverosion.kernels.orientation import ORIENTATIONS
 from pverosion.kernels.weathering import DIRECTIONS, Erodibility, WeatheringSolver
 
-__all__ = ["Weathering", "weathering_output"]
+__all__ = ["ErodibilityInput", "Weathering", "weathering_output"]
 
 
-def weathering_output(solver: WeatheringSolver, source, out) -> None:
+def weathering_output(solver: GuardedMeshSolver, source, out, *, prefix: str = "weathering") -> None:
     """Fill vtkPolyData ``out`` with the solver's current mesh and its arrays.
 
     Point arrays of ``source`` are carried to the surviving vertices. Adds
     ``mean_curvature``, ``displacement`` (cumulative vector), ``erosion_depth``
     (cumulative displacement into the original surface, along the original
-    inward normal) and, as field data, one ``weathering_<statistic>`` series
-    per step (step 0 first), ``retries`` and ``frozen_vertices``.
+    inward normal) and, as field data, one ``<prefix>_<statistic>`` series
+    per step (step 0 first), ``retries`` and ``frozen_vertices``. Used by
+    every stage built on :class:`~pverosion.kernels.mesh_evolution.GuardedMeshSolver`.
     """
     out.ShallowCopy(source)
     points = vtkPoints()  # a new object: the shallow copy shares the input's points
@@ -52,12 +54,37 @@ def weathering_output(solver: WeatheringSolver, source, out) -> None:
     set_point_array(out, "erosion_depth", depth)
     out_pd.SetActiveScalars("mean_curvature")
     for name, series in solver.statistics.items():
-        set_field_value(out, f"weathering_{name}", series)
+        set_field_value(out, f"{prefix}_{name}", series)
     set_field_value(out, "retries", solver.retries)
     set_field_value(out, "frozen_vertices", solver.frozen)
 
 
-class Weathering(TimeSteppedFilter):
+class ErodibilityInput:
+    """Erodibility of a mesh stage: a Python value (array, callable, material field) or the ``erodibility_array``."""
+
+    def __init__(self, *, erodibility: Erodibility = None, **options):
+        super().__init__(**options)
+        self._erodibility = erodibility
+
+    def set_erodibility(self, erodibility: Erodibility) -> None:
+        """Per-vertex array (V,) or callable of points (N, 3) -> (N,); None for uniform."""
+        self._erodibility = erodibility
+        self.Modified()
+
+    def _erodibility_for(self, inp):
+        name = self.get_option("erodibility_array")
+        if not name:
+            return self._erodibility
+        arr = inp.GetPointData().GetArray(name)
+        if arr is None:
+            raise ValueError(f"erodibility_array {name!r} is not a point array of the input")
+        values = numpy_support.vtk_to_numpy(arr)
+        if values.ndim != 1:
+            raise ValueError(f"erodibility_array {name!r} must have one component; got {values.shape[1]}")
+        return values
+
+
+class Weathering(ErodibilityInput, TimeSteppedFilter):
     """Curvature-driven weathering (Skorkovská et al. 2019, §3.3).
 
     Convex vertices move along the unit uniform Laplacian by
@@ -93,27 +120,9 @@ class Weathering(TimeSteppedFilter):
     )
 
     def __init__(self, *, erodibility: Erodibility = None, **options):
-        super().__init__(**options)
-        self._erodibility = erodibility
+        super().__init__(erodibility=erodibility, **options)
         self._solver: WeatheringSolver | None = None
         self._key: tuple | None = None
-
-    def set_erodibility(self, erodibility: Erodibility) -> None:
-        """Per-vertex array (V,) or callable of points (N, 3) -> (N,); None for uniform."""
-        self._erodibility = erodibility
-        self.Modified()
-
-    def _erodibility_for(self, inp):
-        name = self.get_option("erodibility_array")
-        if not name:
-            return self._erodibility
-        arr = inp.GetPointData().GetArray(name)
-        if arr is None:
-            raise ValueError(f"erodibility_array {name!r} is not a point array of the input")
-        values = numpy_support.vtk_to_numpy(arr)
-        if values.ndim != 1:
-            raise ValueError(f"erodibility_array {name!r} must have one component; got {values.shape[1]}")
-        return values
 
     def execute(self, inp, out) -> None:
         """Advance (or restart) the cached solver to the requested step and fill ``out``."""
