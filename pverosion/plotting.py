@@ -129,6 +129,7 @@ def render_strip(
     panel_size: tuple[int, int] = (360, 360),
     percentile: float = 98.0,
     cmap: str | None = None,
+    particles: list[list] | None = None,
 ) -> Path:
     """Render a grid of meshes (one row per list) with the curvature colour map to one PNG.
 
@@ -150,6 +151,9 @@ def render_strip(
     cmap : str, optional
         Another colour map (e.g. ``"copper_r"`` for hardness, hard is dark),
         spanning each panel's data range instead of the curvature coding.
+    particles : list of list of pyvista.PolyData or None, optional
+        Point clouds (fluid particles) drawn as blue spheres over the panel
+        at the same position; None or an empty cloud draws nothing.
 
     Returns
     -------
@@ -164,6 +168,9 @@ def render_strip(
             plotter.subplot(i, j)
             plotter.add_mesh(mesh, scalars=scalars, smooth_shading=True, show_scalar_bar=False,
                              **_colours(mesh[scalars], percentile, cmap))
+            cloud = particles[i][j] if particles is not None else None
+            if cloud is not None and cloud.n_points:
+                plotter.add_mesh(cloud, color="#2f6fd6", render_points_as_spheres=True, point_size=4)
             if labels is not None:
                 plotter.add_text(labels[i][j], font_size=10, position="upper_left")
             plotter.view_isometric()

@@ -6,8 +6,9 @@ the bounding volume); two triangles are compared only when they share a cell,
 and only in the first cell they share, so every pair is tested once.
 Narrow phase: Möller's (1997) interval test on the line where the two planes
 meet, with the plane side of each vertex taken from the sign of an orientation
-determinant, and an edge-crossing/containment test for coplanar pairs.
-Touching counts as intersecting.
+determinant (snapped to zero within rounding of the plane), and an
+edge-crossing/containment test for coplanar pairs. Touching counts as
+intersecting.
 
 Faces that share a vertex are adjacent and never reported; degenerate faces
 (zero area) are skipped.
@@ -24,10 +25,25 @@ from pverosion.kernels.validation import as_triangle_mesh
 __all__ = ["intersecting_faces", "intersecting_pairs", "spatial_order", "triangles_intersect"]
 
 
+FLAT = 1e-12
+"""Relative plane distance below which a vertex counts as lying in the other triangle's plane."""
+
+
 @njit(cache=True, error_model="numpy")
 def _side(a, b, c, p):
-    """Orientation determinant of ``p`` against the plane through a, b, c."""
-    return v3.dot(v3.cross(v3.sub(b, a), v3.sub(c, a)), v3.sub(p, a))
+    """Orientation determinant of ``p`` against the plane through a, b, c; 0 when within rounding of the plane.
+
+    Points of a flat but tilted wall are rarely exactly coplanar in floating
+    point; a distance below :data:`FLAT` times the size of the configuration
+    is taken as zero, so such pairs go to the coplanar test.
+    """
+    ab, ac, ap = v3.sub(b, a), v3.sub(c, a), v3.sub(p, a)
+    n = v3.cross(ab, ac)
+    d = v3.dot(n, ap)
+    size2 = max(v3.dot(ab, ab), v3.dot(ac, ac), v3.dot(ap, ap))
+    if d * d <= FLAT * FLAT * v3.dot(n, n) * size2:
+        return 0.0
+    return d
 
 
 @njit(cache=True, error_model="numpy")
