@@ -9,6 +9,7 @@ and ParaView plugins.
 from pverosion.api import (
     curvature,
     freeze_thaw,
+    hydraulic_erosion,
     materials_from_volume,
     sample_materials,
     shard_graph,
@@ -29,6 +30,7 @@ __all__ = [
     "curvature",
     "curvature_cmap",
     "freeze_thaw",
+    "hydraulic_erosion",
     "materials_from_volume",
     "sample_materials",
     "shard_graph",

@@ -41,3 +41,7 @@ class ErosionAccessor:
     def freeze_thaw(self, **options) -> pv.MultiBlock:
         """Freeze–thaw weathering of this closed mesh; see :func:`pverosion.freeze_thaw`."""
         return api.freeze_thaw(self._dataset, **options)
+
+    def hydraulic(self, **options) -> pv.MultiBlock:
+        """Hydraulic erosion of this closed mesh by a particle fluid; see :func:`pverosion.hydraulic_erosion`."""
+        return api.hydraulic_erosion(self._dataset, **options)

@@ -7,6 +7,7 @@ import pyvista as pv
 
 from pverosion._frontend import apply_filter
 from pverosion.filters.curvature import Curvature
+from pverosion.filters.hydraulic import HydraulicErosion
 from pverosion.filters.materials import MaterialSampler
 from pverosion.filters.shards import FreezeThaw, ShardGraph
 from pverosion.filters.voxel import VoxelErosion
@@ -18,9 +19,10 @@ from pverosion.kernels.materials import (
     MaterialField,
     bsp_from_volume,
 )
+from pverosion.kernels.particle_fluid import Drain, Emitter
 from pverosion.kernels.weathering import Erodibility
 
-__all__ = ["curvature", "freeze_thaw", "materials_from_volume", "sample_materials", "shard_graph", "voxel_erosion",
+__all__ = ["curvature", "freeze_thaw", "hydraulic_erosion", "materials_from_volume", "sample_materials", "shard_graph", "voxel_erosion",
            "weather"]
 
 
@@ -332,3 +334,89 @@ def freeze_thaw(mesh: pv.PolyData, *, paths: int = 1000, cells: int = 1000, patt
     if not isinstance(mesh, pv.PolyData):
         raise TypeError(f"freeze_thaw needs a PolyData surface; got {type(mesh).__name__}")
     return pv.wrap(alg.run(mesh))
+
+
+def _spec(item, kind: str) -> str:
+    """One emitter/drain as the filter's text form (from text, numbers or the kernel's dataclass)."""
+    if isinstance(item, str):
+        return item
+    if isinstance(item, Emitter):
+        values = [*item.position, *item.direction, item.radius, item.rate]
+        if item.speed is not None:
+            values.append(item.speed)
+        return ",".join(repr(float(v)) for v in values)
+    if isinstance(item, Drain):
+        return f"{item.kind}:" + ",".join(repr(float(v)) for v in item.values)
+    if kind == "emitter":
+        return ",".join(repr(float(v)) for v in np.asarray(item, dtype=float).ravel())
+    raise TypeError(f"a drain is a string like 'plane:0,0,1,5' or a Drain; got {type(item).__name__}")
+
+
+def hydraulic_erosion(
+    mesh: pv.PolyData,
+    *,
+    emitters,
+    iterations: int = 100,
+    model: str = "curvature",
+    drains=(),
+    radius: float | None = None,
+    erodibility: Erodibility | str = None,
+    seed: int = 0,
+    **options,
+) -> pv.MultiBlock:
+    """Hydraulic erosion of a closed mesh by a particle fluid (Skorkovská 2019 §3.4; thesis ch. 8).
+
+    Parameters
+    ----------
+    mesh : pyvista.PolyData
+        Closed triangle surface (terrain block or model); the water flows on
+        its outside. It is not modified.
+    emitters : sequence
+        Water sources, each ``"x,y,z,dx,dy,dz,r,rate[,speed]"``, a sequence of
+        those 8 or 9 numbers, or a :class:`~pverosion.kernels.particle_fluid.Emitter`.
+    iterations : int, default: 100
+        Iterations (one fluid step and one erosion step each).
+    model : {"curvature", "sediment"}, default: "curvature"
+        Shifted-curvature displacement near colliding particles (eqs. 6–7), or
+        shear-stress erosion and deposition with volume-exact displacement
+        (thesis eqs. 8.2–8.7).
+    drains : sequence, optional
+        ``"plane:nx,ny,nz,d"`` / ``"box:xmin,ymin,zmin,xmax,ymax,zmax"`` strings
+        or :class:`~pverosion.kernels.particle_fluid.Drain` objects; particles
+        leaving the domain are drained anyway.
+    radius : float, optional
+        Particle radius; default half the mesh's average edge length.
+    erodibility : array of shape (V,), callable, str or None
+        Erosion multiplier: per-vertex values, a function of points, or the
+        name of a point array of ``mesh``.
+    seed : int, default: 0
+        Same seed, same result (bit for bit).
+    **options
+        Other options of :class:`pverosion.filters.HydraulicErosion`
+        (``gravity``, ``time_step``, ``substeps``, ``power``, ``step_divisor``,
+        ``influence``, ``erosion_rate``, ``critical_stress``, ...).
+
+    Returns
+    -------
+    pyvista.MultiBlock
+        ``mesh`` (eroded surface with ``erosion_depth``, ``f_distance``,
+        statistics ``hydraulic_*`` in field data) and ``particles`` (positions,
+        ``velocity``, ``speed``, ``sediment``).
+    """
+    if isinstance(emitters, (str, Emitter)):
+        emitters = [emitters]
+    if isinstance(drains, (str, Drain)):
+        drains = [drains]
+    options["emitter"] = ";".join(_spec(e, "emitter") for e in emitters)
+    options["drain"] = ";".join(_spec(d, "drain") for d in drains)
+    if radius is not None:
+        options["radius"] = radius
+    for name in ("gravity",):
+        if name in options and not isinstance(options[name], str):
+            options[name] = ",".join(repr(float(v)) for v in np.asarray(options[name], dtype=float).reshape(3))
+    if "domain" in options and not isinstance(options["domain"], str):
+        options["domain"] = ",".join(repr(float(v)) for v in np.asarray(options["domain"], dtype=float).ravel())
+    options.update(iterations=iterations, model=model, seed=seed)
+    if isinstance(erodibility, str):
+        return apply_filter(HydraulicErosion, mesh, erodibility_array=erodibility, **options)
+    return apply_filter(HydraulicErosion, mesh, erodibility=erodibility, **options)

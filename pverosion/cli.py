@@ -123,6 +123,8 @@ def _run_stage(args: argparse.Namespace) -> None:
             plot_slices(result, args.screenshot)
         elif filter_cls.OUTPUT_TYPE == "vtkMultiBlockDataSet" and "state" in result.keys():  # voxel: slices
             plot_slices(result["state"], args.screenshot, scalars="voxel_class")
+        elif filter_cls.OUTPUT_TYPE == "vtkMultiBlockDataSet" and "mesh" in result.keys():  # hydraulic: eroded mesh
+            render_scalars(result["mesh"], args.screenshot)
         elif filter_cls.OUTPUT_TYPE == "vtkMultiBlockDataSet":  # shards: the remaining shards
             shown = result["shards"] if "shards" in result.keys() else result["surface"]
             render_scalars(shown, args.screenshot, scalars="shard_colour", cmap="tab20")

@@ -6,19 +6,21 @@ generated from it, so a new stage is exposed by adding its class here.
 
 from pverosion.filters.base import ErosionFilter, Param
 from pverosion.filters.curvature import Curvature
+from pverosion.filters.hydraulic import HydraulicErosion
 from pverosion.filters.materials import MaterialSampler, MaterialsFromVolume
 from pverosion.filters.shards import FreezeThaw, ShardGraph
 from pverosion.filters.voxel import VoxelErosion
 from pverosion.filters.weathering import Weathering
 
-ALL_FILTERS: tuple[type[ErosionFilter], ...] = (Curvature, Weathering, MaterialsFromVolume, MaterialSampler,
-                                                VoxelErosion, ShardGraph, FreezeThaw)
+ALL_FILTERS: tuple[type[ErosionFilter], ...] = (Curvature, Weathering, HydraulicErosion, MaterialsFromVolume,
+                                                MaterialSampler, VoxelErosion, ShardGraph, FreezeThaw)
 
 __all__ = [
     "ALL_FILTERS",
     "Curvature",
     "ErosionFilter",
     "FreezeThaw",
+    "HydraulicErosion",
     "MaterialSampler",
     "MaterialsFromVolume",
     "Param",

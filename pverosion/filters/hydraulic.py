@@ -1,0 +1,171 @@
+"""Hydraulic erosion filter: a particle fluid poured over a closed mesh erodes it, one iteration per time step.
+
+Output: a MultiBlock with blocks ``mesh`` (the eroded surface) and
+``particles`` (the fluid: positions, ``velocity``, ``speed``, ``sediment``,
+``particle_id``, ``contact``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pyvista as pv
+from vtkmodules.vtkCommonDataModel import vtkPolyData
+
+from pverosion.filters.base import (
+    Param,
+    TimeSteppedFilter,
+    polydata_triangles,
+    set_field_value,
+    set_multiblock,
+    set_point_array,
+)
+from pverosion.filters.materials import parse_numbers
+from pverosion.filters.weathering import ErodibilityInput, weathering_output
+from pverosion.kernels.geometry import average_edge_length
+from pverosion.kernels.hydraulic_erosion import MODELS, HydraulicSolver, ShearParameters
+from pverosion.kernels.orientation import ORIENTATIONS
+from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters
+
+__all__ = ["HydraulicErosion", "parse_drains", "parse_emitters", "particles_polydata"]
+
+_SHEAR = ("erosion_rate", "critical_stress", "stress_constant", "stress_power", "rate_power")
+
+
+def parse_emitters(text: str) -> list[Emitter]:
+    """Emitters from ``"x,y,z,dx,dy,dz,r,rate[,speed]"`` specifications separated by ``;``."""
+    return [Emitter.parse(part) for part in text.split(";") if part.strip()]
+
+
+def parse_drains(text: str) -> list[Drain]:
+    """Drains from ``"plane:nx,ny,nz,d"`` / ``"box:xmin,ymin,zmin,xmax,ymax,zmax"`` separated by ``;``."""
+    return [Drain.parse(part) for part in text.split(";") if part.strip()]
+
+
+def particles_polydata(solver: HydraulicSolver) -> pv.PolyData:
+    """The fluid particles as a point cloud with ``velocity``, ``speed``, ``sediment``, ``particle_id``, ``contact``."""
+    fluid = solver.fluid
+    cloud = pv.PolyData(fluid.positions.copy()) if len(fluid.positions) else pv.PolyData()
+    if len(fluid.positions):
+        cloud["velocity"] = fluid.velocities.copy()
+        cloud["speed"] = np.linalg.norm(fluid.velocities, axis=1)
+        cloud["sediment"] = fluid.sediment.copy()
+        cloud["particle_id"] = fluid.ids.copy()
+        cloud["contact"] = (fluid.contact_face >= 0).astype(np.int8)
+    return cloud
+
+
+class HydraulicErosion(ErodibilityInput, TimeSteppedFilter):
+    """Hydraulic erosion on a triangle mesh by our own particle fluid (Skorkovská 2019 §3.4; thesis ch. 8).
+
+    Water enters from disc emitters, flows over the closed, outward-oriented
+    input mesh (position-based fluid with mesh collision) and leaves through
+    drains or the domain box. Each time step is one fluid step followed by
+    one erosion step: ``model="curvature"`` moves the vertices near colliding
+    particles by the shifted-curvature rule (eqs. 6–7); ``model="sediment"``
+    exchanges sediment by shear stress (eqs. 8.2–8.4) and moves vertices so
+    the volume changes by exactly the sediment (eqs. 8.5–8.7). TIME_STEPS are
+    0..iterations; a later time continues from the cached state, an earlier
+    one reruns (same seed, same result).
+
+    Output blocks: ``mesh`` with point arrays ``mean_curvature``,
+    ``displacement``, ``erosion_depth``, ``f_distance`` (the last
+    iteration's), ``pending_sediment``, and field data ``hydraulic_<stat>``
+    per iteration; ``particles`` with ``velocity``, ``speed``, ``sediment``,
+    ``particle_id``, ``contact``.
+    """
+
+    LABEL = "Hydraulic erosion (particle fluid)"
+    COMMAND = "hydraulic"
+    OUTPUT_TYPE = "vtkMultiBlockDataSet"
+    PARAMS = (
+        Param("iterations", 100, "Iterations: one fluid step and one erosion step each.", minimum=0),
+        Param("model", "curvature", "Erosion model: curvature (Skorkovska 2019 eqs. 6-7) or sediment (shear stress, "
+              "thesis ch. 8).", choices=MODELS),
+        Param("emitter", "", "Water sources x,y,z,dx,dy,dz,r,rate[,speed] (disc centre, direction, disc radius, "
+              "particles per second, speed), several separated by ';'."),
+        Param("drain", "", "Water sinks plane:nx,ny,nz,d (removes n.x > d) or box:xmin,ymin,zmin,xmax,ymax,zmax, "
+              "separated by ';'. Particles leaving the domain are always drained."),
+        Param("domain", "", "Box of the fluid xmin,ymin,zmin,xmax,ymax,zmax (empty: the mesh and emitters, padded)."),
+        Param("radius", 0.0, "Particle radius (0: half the mesh's average edge length).", minimum=0.0),
+        Param("gravity", "0,0,-9.81", "Gravity vector gx,gy,gz in model units per second squared."),
+        Param("time_step", 0.0, "Seconds per iteration (0: automatic from the particle radius and gravity).",
+              minimum=0.0),
+        Param("substeps", 2, "Fluid substeps per iteration.", minimum=1),
+        Param("solver_iterations", 3, "Density-constraint iterations per substep.", minimum=1),
+        Param("viscosity", 0.01, "XSPH viscosity.", minimum=0.0, maximum=1.0),
+        Param("friction", 0.0, "Fraction of the tangential motion removed at mesh contacts.", minimum=0.0,
+              maximum=1.0),
+        Param("max_particles", 250_000, "Emitters pause at this many particles.", minimum=1),
+        Param("power", 1.0, "Power n of the shifted curvature (curvature model).", minimum=1.0),
+        Param("step_divisor", 10.0, "Divisor x: a vertex moves at most e_avg / x per iteration.", minimum=1e-6),
+        Param("influence", 1.0, "Region of influence d_influence of a particle, in average edge lengths.",
+              minimum=1e-6),
+        Param("erosion_rate", 1e-3, "k of the erosion rate k (tau - tau_c)^a (sediment model).", minimum=0.0),
+        Param("critical_stress", 5.0, "Critical shear stress tau_c (sediment model).", minimum=0.0),
+        Param("stress_constant", 1.0, "K of the shear stress K theta^m (sediment model).", minimum=0.0),
+        Param("stress_power", 1.0, "m of the shear stress K theta^m (sediment model).", minimum=1e-6),
+        Param("rate_power", 1.0, "a of the erosion rate k (tau - tau_c)^a (sediment model).", minimum=1e-6),
+        Param("erodibility_array", "", "Input point array used as per-vertex erodibility (empty: uniform)."),
+        Param("min_edge_ratio", 0.1, "Collapse edges shorter than this times e_avg among moved vertices (0: off).",
+              minimum=0.0, maximum=0.99),
+        Param("check_every", 10, "Self-intersection guard period in iterations (0: off).", minimum=0),
+        Param("orientation", "outward", "Face orientation to use (outward: the fluid is outside the mesh).",
+              choices=ORIENTATIONS),
+        Param("seed", 0, "Seed of the fluid's random numbers.", minimum=0),
+    )
+
+    def __init__(self, *, erodibility=None, **options):
+        super().__init__(erodibility=erodibility, **options)
+        self._solver: HydraulicSolver | None = None
+        self._key: tuple | None = None
+
+    def _new_solver(self, inp) -> HydraulicSolver:
+        points, faces = polydata_triangles(inp)
+        emitters = parse_emitters(self.get_option("emitter"))
+        drains = parse_drains(self.get_option("drain"))
+        if not emitters:
+            raise ValueError("hydraulic erosion needs water: give at least one emitter x,y,z,dx,dy,dz,r,rate")
+        radius = self.get_option("radius") or 0.5 * average_edge_length(np.asarray(points, np.float64),
+                                                                        np.asarray(faces, np.int64))
+        fluid = FluidParameters(
+            radius=radius, gravity=tuple(parse_numbers(self.get_option("gravity"), "gravity", count=3)),
+            time_step=self.get_option("time_step") or None, substeps=self.get_option("substeps"),
+            solver_iterations=self.get_option("solver_iterations"), viscosity=self.get_option("viscosity"),
+            friction=self.get_option("friction"), max_particles=self.get_option("max_particles"))
+        domain = None
+        if self.get_option("domain"):
+            box = parse_numbers(self.get_option("domain"), "domain", count=6)
+            domain = (box[:3], box[3:])
+        return HydraulicSolver(
+            points, faces, fluid=fluid, emitters=emitters, drains=drains, domain=domain,
+            model=self.get_option("model"), power=self.get_option("power"),
+            step_divisor=self.get_option("step_divisor"), influence=self.get_option("influence"),
+            shear=ShearParameters(**{name: self.get_option(name) for name in _SHEAR}),
+            erodibility=self._erodibility_for(inp), min_edge_ratio=self.get_option("min_edge_ratio"),
+            check_every=self.get_option("check_every"), orientation=self.get_option("orientation"),
+            seed=self.get_option("seed"))
+
+    def execute(self, inp, out) -> None:
+        """Advance (or restart) the cached solver to the requested iteration and fill ``out``."""
+        step = self.requested_step()
+        key = (inp.GetMTime(), self.GetMTime())
+        if self._solver is None or self._key != key or self._solver.step_count > step:
+            self._solver = None
+            self._solver = self._new_solver(inp)
+            self._key = key
+        solver = self._solver
+        start = solver.step_count
+        total = max(step - start, 1)
+
+        def progress(s: HydraulicSolver) -> None:
+            self.UpdateProgress(min((s.step_count - start) / total, 1.0))
+
+        solver.run(step - start, outputs=[step], on_step=progress)
+        mesh = vtkPolyData()
+        weathering_output(solver, inp, mesh, prefix="hydraulic")
+        set_point_array(mesh, "f_distance", solver.f_distance)
+        set_point_array(mesh, "pending_sediment", solver.pending)
+        set_field_value(mesh, "model", solver.model)
+        set_field_value(mesh, "time", solver.fluid.time)
+        set_multiblock(out, pv.MultiBlock({"mesh": pv.wrap(mesh), "particles": particles_polydata(solver)}))
+        out.GetInformation().Set(out.DATA_TIME_STEP(), float(step))

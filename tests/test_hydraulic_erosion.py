@@ -1,0 +1,166 @@
+"""Hydraulic erosion kernels: affected vertices, the two erosion models, locality, sediment and volume balance."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import pyvista as pv
+from scipy.spatial import cKDTree
+
+from pverosion.kernels.geometry import signed_volume
+from pverosion.kernels.hydraulic_erosion import (
+    HydraulicSolver,
+    ShearParameters,
+    _apply_volumes,
+    _exchange,
+    nearest_particle_distance,
+)
+from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters
+from pverosion.kernels.topology import vertex_face_incidence
+
+
+def _block(resolution: int = 12) -> pv.PolyData:
+    """A closed 4 x 4 x 1 slab (outward), top at z = 0.5."""
+    return pv.Box(bounds=(-2, 2, -2, 2, -0.5, 0.5), level=resolution, quads=False).clean()
+
+
+def _solver(model: str = "curvature", *, seed: int = 0, speed: float | None = None, **options) -> HydraulicSolver:
+    block = _block()
+    fluid = FluidParameters(radius=0.06)
+    rate = 2000.0 if speed is None else 300.0  # a given speed thins the lattice layers at random (seeded)
+    emitter = Emitter(position=(0.0, 0.0, 1.2), direction=(0.3, 0.0, -1.0), radius=0.3, rate=rate, speed=speed)
+    drain = Drain(kind="plane", values=(0.0, 0.0, -1.0, 0.2))  # below the top of the slab
+    return HydraulicSolver(block.points, block.regular_faces, fluid=fluid, emitters=[emitter], drains=[drain],
+                           model=model, seed=seed, **options)
+
+
+def test_nearest_particle_distance_matches_kd_tree():
+    rng = np.random.default_rng(3)
+    points = rng.uniform(-1, 1, (3000, 3))
+    particles = rng.uniform(-0.5, 0.5, (700, 3))
+    radius = 0.07
+    got = nearest_particle_distance(points, particles, radius)
+    dist, _ = cKDTree(particles).query(points)
+    expected = np.where(dist <= radius, dist, np.inf)
+    assert np.count_nonzero(np.isfinite(expected)) > 50
+    np.testing.assert_allclose(got, expected, rtol=1e-12)
+    assert np.all(np.isinf(nearest_particle_distance(points, np.empty((0, 3)), radius)))
+    with pytest.raises(ValueError, match="radius"):
+        nearest_particle_distance(points, particles, 0.0)
+
+
+def test_volume_exact_displacement_changes_volume_by_the_sediment():
+    sphere = pv.Icosphere(radius=1.0, nsub=4)
+    points = np.asarray(sphere.points, dtype=np.float64).copy()
+    faces = np.asarray(sphere.regular_faces, dtype=np.int64)
+    rng = np.random.default_rng(0)
+    pending = np.zeros(len(points))
+    chosen = rng.choice(len(points), 400, replace=False)
+    pending[chosen] = rng.uniform(-1e-4, 1e-4, 400)
+    before = signed_volume(points, faces)
+    total = pending.sum()
+    signs = np.sign(pending[chosen])
+    disp = np.zeros_like(points)
+    _apply_volumes(points, faces, *vertex_face_incidence(faces, len(points)), pending, np.full(len(points), 1.0), disp)
+    assert np.all(pending == 0.0)
+    assert signed_volume(points, faces) - before == pytest.approx(total, rel=1e-9, abs=1e-15)
+    # moves are along the normal: deposition outward, erosion inward
+    radial = np.einsum("ij,ij->i", disp[chosen], points[chosen] / np.linalg.norm(points[chosen], axis=1)[:, None])
+    assert np.all(np.sign(radial) == signs)
+
+
+def test_capped_moves_keep_the_rest_pending():
+    sphere = pv.Icosphere(radius=1.0, nsub=3)
+    points = np.asarray(sphere.points, dtype=np.float64).copy()
+    faces = np.asarray(sphere.regular_faces, dtype=np.int64)
+    pending = np.zeros(len(points))
+    pending[::7] = 0.01  # far more than a 1e-3 move can hold
+    total = pending.sum()
+    before = signed_volume(points, faces)
+    disp = np.zeros_like(points)
+    _apply_volumes(points, faces, *vertex_face_incidence(faces, len(points)), pending, np.full(len(points), 1e-3),
+                   disp)
+    assert np.all(np.linalg.norm(disp, axis=1) <= 1e-3 * (1 + 1e-12))
+    assert np.all(pending[::7] > 0)
+    assert signed_volume(points, faces) - before == pytest.approx(total - pending.sum(), rel=1e-9)
+
+
+def test_exchange_conserves_sediment():
+    plane = pv.Plane(i_resolution=10, j_resolution=10).triangulate()
+    points = np.asarray(plane.points, dtype=np.float64)
+    faces = np.asarray(plane.regular_faces, dtype=np.int64)
+    rng = np.random.default_rng(1)
+    n = 200
+    contact = rng.integers(-1, len(faces), n)
+    pos = points[faces[np.maximum(contact, 0)]].mean(axis=1) + [0, 0, 0.02]
+    vel = rng.normal(0, 3.0, (n, 3))
+    sediment = rng.uniform(0, 1e-4, n)
+    carried0 = sediment.sum()
+    pending = np.zeros(len(points))
+    eroded, deposited = _exchange(points, faces, pos, vel, contact, np.full(n, 0.02), sediment, pending,
+                                  np.ones(len(points), bool), np.ones(len(points)), 0.2, 0.01, 1e-3, 0.005,
+                                  1e-3, 60.0, 1.0, 1.0, 1.0)
+    assert eroded > 0 and deposited > 0
+    assert sediment.sum() - carried0 == pytest.approx(eroded - deposited, rel=1e-12, abs=1e-18)
+    assert pending.sum() == pytest.approx(deposited - eroded, rel=1e-12, abs=1e-18)
+    assert np.all(sediment >= 0)
+
+
+def test_curvature_erosion_is_local():
+    solver = _solver(check_every=0)
+    moved_any = False
+    for _ in range(25):
+        before = dict(zip(solver.ids.tolist(), solver.points.copy()))
+        reach = solver.d_influence
+        solver.run(1)
+        if len(solver.colliding) == 0:
+            continue
+        tree = cKDTree(solver.colliding)
+        now = dict(zip(solver.ids.tolist(), solver.points))
+        ids = [i for i in now if i in before]
+        old = np.array([before[i] for i in ids])
+        new = np.array([now[i] for i in ids])
+        moved = np.any(old != new, axis=1)
+        moved_any |= bool(moved.any())
+        dist, _ = tree.query(old)
+        assert np.all(dist[moved] <= reach * (1 + 1e-9))
+    assert moved_any
+    assert solver.volume() < solver.statistics["volume"][0]
+
+
+def test_sediment_model_balances_volume():
+    shear = ShearParameters(erosion_rate=2e-3, critical_stress=20.0)
+    solver = _solver("sediment", shear=shear)
+    solver.run(40)
+    assert solver.eroded > 0
+    assert solver.conservation_error() <= 1e-6 * solver.eroded
+    net = solver.deposited - solver.eroded - float(solver.pending.sum())
+    change = solver.volume() - solver.statistics["volume"][0]
+    assert change == pytest.approx(net, rel=0.01)
+
+
+def test_same_seed_same_run():
+    a, b = _solver(seed=4, speed=3.0), _solver(seed=4, speed=3.0)
+    a.run(12)
+    b.run(12)
+    assert np.array_equal(a.points, b.points) and np.array_equal(a.fluid.positions, b.fluid.positions)
+    c = _solver(seed=5, speed=3.0)
+    c.run(12)
+    assert not np.array_equal(a.fluid.positions, c.fluid.positions)
+
+
+def test_bad_options_are_named():
+    block = _block(4)
+    fluid = FluidParameters(radius=0.05)
+    with pytest.raises(ValueError, match="model"):
+        HydraulicSolver(block.points, block.regular_faces, fluid=fluid, model="wind")
+    with pytest.raises(ValueError, match="power"):
+        HydraulicSolver(block.points, block.regular_faces, fluid=fluid, power=0.5)
+    with pytest.raises(ValueError, match="influence"):
+        HydraulicSolver(block.points, block.regular_faces, fluid=fluid, influence=-1.0)
+    with pytest.raises(TypeError, match="fluid"):
+        HydraulicSolver(block.points, block.regular_faces, fluid={"radius": 0.1})
+    with pytest.raises(ValueError, match="domain"):
+        HydraulicSolver(block.points, block.regular_faces, fluid=fluid, domain=((0, 0, 0), (-1, 1, 1)))
+    with pytest.raises(ValueError, match="critical_stress"):
+        ShearParameters(critical_stress=-1.0)
