@@ -31,6 +31,7 @@ from skimage.graph import route_through_array
 
 from pverosion.examples import load_rock
 from pverosion.kernels.orientation import orient_faces
+from pverosion.kernels.particle_fluid import Emitter
 from pverosion.kernels.terrain import height_field_solid
 from pverosion.kernels.topology import edge_topology
 from pverosion.kernels.validation import as_triangle_mesh
@@ -70,8 +71,14 @@ class HydraulicScene:
 
 
 def _emitter(position, direction, disc: float, radius: float, speed: float) -> str:
-    """Emitter string of a disc that fills its cross-section at ``speed`` with particles one diameter apart."""
-    rate = np.pi * disc**2 * speed / (2.0 * radius) ** 3
+    """Emitter string of a disc that fills its cross-section at ``speed`` with particles one diameter apart.
+
+    The rate is what the emitter's lattice of spacing 2r in the disc releases
+    at that speed (a layer every 2r / speed seconds).
+    """
+    spacing = 2.0 * radius
+    layer = len(Emitter(position=tuple(position), direction=tuple(direction), radius=disc, rate=1.0).lattice(spacing))
+    rate = layer * speed / spacing * (1.0 - 1e-9)
     values = [*np.asarray(position, dtype=float), *np.asarray(direction, dtype=float), disc, rate, speed]
     return ",".join(f"{v:.6g}" for v in values)
 
@@ -300,7 +307,7 @@ def canyon_scene(*, n_faces: int = 34_000, seed: int = 0) -> HydraulicScene:
     Returns
     -------
     HydraulicScene
-        Emitter pouring down into the canyon's head, a drain past the outlet,
+        Emitter jetting down the channel from the canyon's head, a drain past the outlet,
         particles of radius 1/12 of the channel's width.
     """
     if int(n_faces) != n_faces or n_faces < 2000:
@@ -318,8 +325,9 @@ def canyon_scene(*, n_faces: int = 34_000, seed: int = 0) -> HydraulicScene:
     mesh = pv.PolyData.from_regular_faces(vertices, faces)
     radius = _CANYON_WIDTH / 12.0
     x_head = _CANYON_START + 0.5 * _CANYON_WIDTH
-    emitter = _emitter((x_head, float(centre(x_head)), _CANYON_HEIGHT + 0.1), (0.0, 0.0, -1.0),
-                       0.3 * _CANYON_WIDTH, radius, 0.5)
+    # a jet low in the canyon's head, down the channel, so the water runs through the whole canyon
+    emitter = _emitter((x_head, float(centre(x_head)), _floor(np.array([x_head]))[0] + 0.08), (1.0, 0.0, -0.3),
+                       0.35 * _CANYON_WIDTH, radius, 1.5)
     drain = f"plane:1,0,0,{_CANYON_LENGTH + 0.05:.6g}"
     domain = _box((-0.05, -_CANYON_HALF_WIDTH - 0.05, -0.1),
                   (_CANYON_LENGTH + 0.1, _CANYON_HALF_WIDTH + 0.05, _CANYON_HEIGHT + 0.2))

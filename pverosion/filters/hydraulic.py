@@ -86,6 +86,7 @@ class HydraulicErosion(ErodibilityInput, TimeSteppedFilter):
         Param("drain", "", "Water sinks plane:nx,ny,nz,d (removes n.x > d) or box:xmin,ymin,zmin,xmax,ymax,zmax, "
               "separated by ';'. Particles leaving the domain are always drained."),
         Param("domain", "", "Box of the fluid xmin,ymin,zmin,xmax,ymax,zmax (empty: the mesh and emitters, padded)."),
+        Param("walls", False, "Keep particles inside the domain box (a tank) instead of draining those leaving it."),
         Param("radius", 0.0, "Particle radius (0: half the mesh's average edge length).", minimum=0.0),
         Param("gravity", "0,0,-9.81", "Gravity vector gx,gy,gz in model units per second squared."),
         Param("time_step", 0.0, "Seconds per iteration (0: automatic from the particle radius and gravity).",
@@ -137,7 +138,7 @@ class HydraulicErosion(ErodibilityInput, TimeSteppedFilter):
             box = parse_numbers(self.get_option("domain"), "domain", count=6)
             domain = (box[:3], box[3:])
         return HydraulicSolver(
-            points, faces, fluid=fluid, emitters=emitters, drains=drains, domain=domain,
+            points, faces, fluid=fluid, emitters=emitters, drains=drains, domain=domain, walls=self.get_option("walls"),
             model=self.get_option("model"), power=self.get_option("power"),
             step_divisor=self.get_option("step_divisor"), influence=self.get_option("influence"),
             shear=ShearParameters(**{name: self.get_option(name) for name in _SHEAR}),

@@ -52,7 +52,7 @@ from pverosion.kernels.geometry import average_edge_length
 from pverosion.kernels.laplacian import laplacian_vectors
 from pverosion.kernels.mesh_evolution import GuardedMeshSolver, volume_area
 from pverosion.kernels.normalize import normalize_shifted
-from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters, ParticleFluid
+from pverosion.kernels.particle_fluid import FluidParameters, ParticleFluid
 from pverosion.kernels.topology import vertex_face_incidence
 from pverosion.kernels.weathering import Erodibility, check_erodibility, erodibility_now
 
@@ -335,11 +335,14 @@ class HydraulicSolver(GuardedMeshSolver):
     fluid : FluidParameters
         Particle radius, gravity, time step, substeps, solver iterations, viscosity.
     emitters, drains : sequence of Emitter / Drain
-        Where water enters and leaves.
+        Where water enters and leaves (:mod:`pverosion.kernels.particle_fluid`).
     domain : tuple of two array_like (3,), optional
         Box the particles live in; particles leaving it are drained. Default:
         the mesh's bounding box and the emitters, padded by 10 % of the
         diagonal (and 20 particle radii above).
+    walls : bool, default: False
+        Keep the particles inside the domain box (a tank) instead of draining
+        those that leave it.
     model : {"curvature", "sediment"}, default: "curvature"
     power : float, default: 1.0
         n of the curvature model (H_s^n).
@@ -368,6 +371,11 @@ class HydraulicSolver(GuardedMeshSolver):
         Sediment volume waiting on each vertex (sediment model).
     eroded, deposited : float
         Total volumes taken from and given back to the mesh (sediment model).
+    profile : dict or None
+        Set it to ``{}`` to collect the seconds per part of each iteration:
+        "fluid_total" (the fluid step; set ``fluid.profile = {}`` for its
+        phases), "affected", "curvature" (with the Laplacian), "displacement"
+        (with mesh improvement and the collision grid update), "guard".
     """
 
     STAT_NAMES = STAT_NAMES
@@ -382,6 +390,7 @@ class HydraulicSolver(GuardedMeshSolver):
         emitters=(),
         drains=(),
         domain=None,
+        walls: bool = False,
         model: str = "curvature",
         power: float = 1.0,
         step_divisor: float = 10.0,
@@ -404,13 +413,7 @@ class HydraulicSolver(GuardedMeshSolver):
             raise ValueError(f"influence must be > 0; got {influence!r}")
         if not isinstance(fluid, FluidParameters):
             raise TypeError(f"fluid must be FluidParameters; got {type(fluid).__name__}")
-        emitters, drains = tuple(emitters), tuple(drains)
-        for e in emitters:
-            if not isinstance(e, Emitter):
-                raise TypeError(f"emitters must be Emitter objects; got {type(e).__name__}")
-        for d in drains:
-            if not isinstance(d, Drain):
-                raise TypeError(f"drains must be Drain objects; got {type(d).__name__}")
+        emitters = tuple(emitters)
         super().__init__(points, faces, min_edge_ratio=min_edge_ratio, check_every=check_every,
                          max_halvings=max_halvings, orientation=orientation)
         self.model = model
@@ -420,7 +423,7 @@ class HydraulicSolver(GuardedMeshSolver):
         self.shear = shear if shear is not None else ShearParameters()
         self._erodibility = check_erodibility(erodibility, len(self.points))
         box = self._domain(domain, emitters, fluid.radius)
-        self.fluid = ParticleFluid(fluid, domain=box, emitters=emitters, drains=drains, seed=seed)
+        self.fluid = ParticleFluid(fluid, domain=box, emitters=emitters, drains=drains, walls=walls, seed=seed)
         self.fluid.set_mesh(self.points, self.faces)
         self.f_distance = np.zeros(len(self.points))
         self.colliding = np.empty((0, 3))
@@ -482,8 +485,6 @@ class HydraulicSolver(GuardedMeshSolver):
     def _step(self) -> None:
         clock = time.perf_counter()
         fluid = self.fluid
-        if fluid.profile is None and self.profile is not None:
-            fluid.profile = {}
         fluid.step()
         clock = self._lap("fluid_total", clock)
         touching = fluid.contact_face >= 0
