@@ -74,7 +74,7 @@ def run_scene(name: str, out: Path, *, quick: bool, save_every: int) -> dict:
     alg.step_through(mesh, range(iterations + 1), on_output=check)
     seconds = time.perf_counter() - start
     final = panels[iterations]["mesh"]
-    stats = {key[len("hydraulic_"):]: float(final.field_data[key][-1]) for key in final.field_data.keys()
+    stats = {key[len("hydraulic_"):]: float(final.field_data[key][-1]) for key in final.field_data
              if key.startswith("hydraulic_")}
     render_strip([[panels[t]["mesh"] for t in shown], [panels[t]["mesh"] for t in shown]], out / f"{name}.png",
                  labels=[[f"{name}: {t} iterations" for t in shown], ["isolated model"] * len(shown)],
