@@ -7,58 +7,66 @@ Method
   uses the poly6 kernel, gradients the spiky kernel. The rest density
   ``rho0`` is the kernel sum of a particle in a cubic lattice of spacing
   ``2r``, so such a lattice is exactly at rest density.
-- **Each substep** (``time_step / substeps`` seconds): gravity and a
-  predicted position ``p = x + v dt``; a swept collision test of ``x -> p``
-  against the mesh, then the push-out and the boundary planes of each
-  particle (below); neighbour lists; ``solver_iterations`` Jacobi
-  iterations of the density constraint; friction and a final swept test of
-  the substep's whole motion; ``v = (p - x) / dt``; XSPH viscosity
-  ``v_i += c sum_j (v_j - v_i) W_ij / rho0``; the into-surface velocity of
-  particles touching the mesh is removed.
+- **A step** emits, runs ``substeps`` substeps of ``time_step / substeps``
+  seconds, then drains. **A substep**: gravity and a predicted position
+  ``p = x + v dt``; the mesh collision of ``x -> p`` (below); neighbour lists
+  (grid of cell edge h); ``solver_iterations`` Jacobi iterations of the
+  density constraint, each followed by the push-out from the particle's
+  boundary planes and the walls; friction and a final swept test of the
+  substep's whole motion; ``v = (p - x) / dt``; XSPH viscosity
+  ``v_i += c sum_j (v_j - v_i) W_ij / W(0)``; at a contact, the velocity into
+  the surface is removed.
 - **Density constraint.** ``C_i = max(rho_i / rho0 - 1, 0)``, the unilateral
   form (particles only push each other apart, so the free surface does not
   clump), ``lambda_i = -w C_i / (sum_k |grad_k C_i|² + epsilon)`` (eq. 11)
-  and the position change of eq. 14 with the tensile term ``s_corr`` of
-  eq. 13 (k = 0.1, n = 4, dq = 0.2 h). Jacobi iterations on this system
-  diverge for the checkerboard modes of the lattice unless ``w`` is below
-  2 / 2.65 (2.65 is the largest eigenvalue of the diagonally scaled
-  constraint matrix of the rest lattice, 2.9 at 5 % compression): ``w`` is
+  and the position change of eq. 14, with the tensile term ``s_corr`` of
+  eq. 13 when ``tensile`` > 0. Jacobi iterations on this system diverge for
+  the checkerboard modes of the lattice unless ``w`` is below 2 / 2.65
+  (2.65 is the largest eigenvalue of the diagonally scaled constraint
+  matrix of the rest lattice, 2.9 at 5 % compression): ``w`` is
   :data:`JACOBI_WEIGHT`. The last iteration applies half its correction,
-  which keeps every mode's net response per substep non-negative; an odd
-  number of plain iterations leaves modes that flip sign each substep and
-  grow through the velocity update.
+  which keeps every mode's net response per substep non-negative: with an
+  odd number of plain iterations, modes that flip sign each substep grow
+  through the velocity update. ``epsilon`` and ``s_corr`` are in units of
+  S, the sum of the squared constraint gradients of a particle at rest in
+  the lattice, so the parameters mean the same at any particle size.
 - **Walls and mesh in the density.** The solid behind a wall or mesh face
   counts as two layers of virtual particles (at ``delta + r`` and
   ``delta + 3r`` from a particle ``delta`` in front of it, each smeared over
   its plane), scaled to equal the lattice layers it replaces at
   ``delta = r``: fluid resting on a floor is at rest density instead of
-  being squeezed into it. Each particle takes up to :data:`MAX_PLANES`
-  boundary planes within :data:`PLANE_REACH` r: the nearest face, then the
-  nearest ones turned more than 30 degrees from it (the walls of a corner),
-  found once per substep; the iterations push particles to ``r`` in front
-  of them.
+  being squeezed into it. A particle's boundary planes are those of the
+  faces it is over within :data:`PLANE_REACH` r (its projection falls inside
+  the triangle), the tangent planes at the closest points of edges and
+  corners within r, and the face it is less than r behind when no face it
+  is over is nearer (the mesh moved over it); of faces turned less than 30
+  degrees apart (one wall) only the nearest counts, up to
+  :data:`MAX_PLANES` walls (a corner).
 - **Mesh collision.** The fluid is on the front side of every face (the
-  right-hand normal points into the fluid). A particle ends at least ``r``
-  in front of every face it is over (its projection falls inside the
-  triangle) and of the tangent plane at the closest point of every nearby
-  edge or corner it is in front of. The segment from each substep's start
-  to the predicted and to the final position is tested against the
-  triangles (front-to-back crossings): a crossing particle is put back
-  ``r`` in front of the first face it crossed, keeping its tangential
-  motion, and stopped just before the crossing if that still crosses a
-  face. So particles never pass through a closed surface, however fast.
-  A particle found less than ``r`` behind the face it is over, when no face
-  it is over is nearer, is moved ``r`` to the front (the mesh moved over
-  it). Faces are found through a uniform grid of cell size
-  ``max(PLANE_REACH r, mean edge)``, each face listed in the cells of its
-  bounding box.
+  right-hand normal points into the fluid). A particle ends ``r`` in front
+  of its boundary planes. The boundary planes are searched at the
+  predicted position with some slack, and reused within the step while
+  the particle stays in it. The substep's start is pushed out first,
+  carrying the predicted position along, so a mesh that moved over a
+  particle gives it no velocity. The segment from the start to the
+  predicted and to the final position is tested against the triangles
+  (front-to-back crossings): a crossing particle is put back ``r`` in front
+  of the first face it crossed, keeping its tangential motion, and stopped
+  just before the crossing if that still crosses a face. So particles never
+  pass through a closed surface, however fast. Faces are found through a
+  uniform grid of cell size ``max(PLANE_REACH r, mean edge)``, each face
+  listed in the cells of its bounding box grown by a margin; while the
+  faces stay the same and no point has moved farther than the margin,
+  :meth:`ParticleFluid.set_mesh` only refreshes the face coordinates.
 - **Grids** are hashed: cells are numbered linearly over the bounding box of
   what they hold and bucketed modulo a power of two, so building them costs
   O(items) whatever the extent, and cells next to each other along x stay
-  next to each other in memory. Particles are processed in cell order.
+  next to each other in memory. The particles are processed in cell order.
 - **Determinism.** Parallel loops write only their own particle's entries,
-  sorts are counting sorts and random numbers come from SplitMix64, so the
-  same inputs and seed give bit-identical states for any number of threads.
+  sorts are counting sorts (in fixed chunks when parallel), ties between
+  faces go to the lower face index, and random numbers come from
+  SplitMix64, so the same inputs and seed give bit-identical states for any
+  number of threads.
 """
 
 from __future__ import annotations
@@ -71,6 +79,7 @@ import numpy as np
 from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._scatter import CHUNKS, chunk_range
 from pverosion.kernels.validation import as_triangle_mesh
 
 __all__ = ["DRAIN_KINDS", "PHASES", "Drain", "Emitter", "FluidParameters", "FluidState", "ParticleFluid"]
@@ -81,8 +90,6 @@ DRAIN_KINDS = ("plane", "box")
 PHASES = ("neighbours", "solve", "collision", "emit_drain")
 """Parts of :meth:`ParticleFluid.step` timed in :attr:`ParticleFluid.profile`."""
 
-TENSILE_STRENGTH = 0.1
-"""k of the tensile correction s_corr (eq. 13), in units of 1 / S (see :class:`FluidParameters`)."""
 TENSILE_DISTANCE = 0.2
 """dq of s_corr in units of the kernel radius h (n = 4)."""
 JACOBI_WEIGHT = 0.7
@@ -100,8 +107,18 @@ _PAIRS = {"reassoc", "contract"}
 """Floating-point freedom of the particle-pair loops: their sums vectorise (same order for any thread count)."""
 _LIMIT = 1 << 19
 """Particle grid cell coordinates are clamped to +-_LIMIT (far-away points only share cells)."""
+_MESH_CELL = float(__import__("os").environ.get("MC", "4.0"))
+"""Least edge of the mesh grid's cells, in radii (larger cells list more faces, smaller ones list each face in
+more cells)."""
 _MESH_CELLS = 4096
 """The mesh grid has at most this many cells along an axis (face boxes pack in 3 x 21 bits)."""
+_REUSE = 0.5
+"""Least slack, in radii, of a search for boundary planes: within a step, a particle whose substep starts and
+ends within the slack of where the mesh was last searched (along each axis) reuses that search, which covered
+PLANE_REACH r plus the slack."""
+_MARGIN = 0.1
+"""Faces are listed in the cells of their boxes grown by this fraction of a cell: set_mesh refits the grid
+instead of rebuilding it while the faces stay the same and no point has moved farther since the build."""
 _SWEEP_ROUNDS = 3
 """Projections of a crossing segment before the particle is stopped at its first crossing."""
 _STOP = 1e-3
@@ -158,25 +175,35 @@ class FluidParameters:
     gravity : (3,) float, default: (0, 0, -9.81)
         Acceleration (model units per s²).
     time_step : float or None, default: None
-        Seconds per :meth:`ParticleFluid.step`. None: ``0.4 sqrt(r / |g|)``,
-        i.e. two substeps of ``0.2 sqrt(r / |g|)``: a particle that has
-        fallen 25 r moves about r per substep, and a pool 20 particles deep
-        stays within 5 % of rest density with 3 iterations (required when
-        gravity is zero).
+        Seconds per :meth:`ParticleFluid.step`. None: ``0.4 sqrt(r / |g|)``
+        (required when gravity is zero), i.e. substeps of ``0.2 sqrt(r / |g|)``
+        at the default two: gravity then moves a resting particle 0.04 r per
+        substep, a particle that has fallen 25 r moves about r per substep,
+        and with 3 iterations a pool 10 particles deep settles about 2.5 %
+        above rest density inside (4 % in bulk; 5 % and 8 % at 20 deep: the
+        compression grows with the depth and the square of the substep).
     substeps : int, default: 2
     solver_iterations : int, default: 3
         Jacobi iterations of the density constraint per substep.
     viscosity : float, default: 0.01
-        XSPH c: the fraction of the kernel-weighted velocity difference to
-        the neighbours blended in per substep.
+        XSPH c in [0, 0.2]: every neighbour's velocity difference is blended
+        in with weight ``c W_ij / W(0)`` per substep (the weights of a
+        particle in the rest lattice sum to 4.2 c).
     friction : float, default: 0.0
         Fraction in [0, 1] of the tangential displacement removed at a mesh
         contact (per substep); 1 makes touching particles stick.
     relaxation : float, default: 0.1
         Constraint-force mixing epsilon of eq. 11 in units of S (the sum of
         the squared constraint gradients of a particle at rest in the
-        lattice): 0.1 damps particles with few neighbours while costing
-        about 10 % of each iteration's correction in the bulk.
+        lattice): it bounds lambda where a particle has few neighbours and
+        costs 10 % of the correction in the bulk. (The under-relaxation that
+        keeps the Jacobi iterations stable is :data:`JACOBI_WEIGHT`.)
+    tensile : float, default: 0.0
+        k of the tensile term s_corr (eq. 13, n = 4, dq = 0.2 h) in units of
+        1 / S; the paper's 0.1 is a comparable strength. Off by default:
+        with the unilateral constraint there is no negative pressure for it
+        to counter, and it adds an artificial pressure that spreads free
+        surfaces and thin jets apart.
     max_particles : int, default: 250000
         Emitters stop emitting at this count; :meth:`ParticleFluid.add_particles`
         refuses to exceed it.
@@ -190,6 +217,7 @@ class FluidParameters:
     viscosity: float = 0.01
     friction: float = 0.0
     relaxation: float = 0.1
+    tensile: float = 0.0
     max_particles: int = 250_000
 
     def __post_init__(self) -> None:
@@ -203,14 +231,13 @@ class FluidParameters:
         _count(self.substeps, "substeps", 1)
         _count(self.solver_iterations, "solver_iterations", 1)
         _count(self.max_particles, "max_particles", 1)
-        for name, top in (("viscosity", 1.0), ("friction", 1.0), ("relaxation", math.inf)):
+        for name, top in (("viscosity", 0.2), ("friction", 1.0), ("relaxation", math.inf), ("tensile", math.inf)):
             value = getattr(self, name)
-            if isinstance(value, bool) or not _is_numeric(value) or np.ndim(value) != 0 or not 0.0 <= float(value) <= top:
+            if (isinstance(value, bool) or not _is_numeric(value) or np.ndim(value) != 0
+                    or not (0.0 <= float(value) <= top and math.isfinite(float(value)))):
                 limit = f"in [0, {top:g}]" if math.isfinite(top) else ">= 0 and finite"
                 raise ValueError(f"{name} must be a number {limit}; got {value!r}")
             object.__setattr__(self, name, float(value))
-        if not math.isfinite(self.relaxation):
-            raise ValueError(f"relaxation must be finite; got {self.relaxation!r}")
 
     @property
     def spacing(self) -> float:
@@ -470,27 +497,31 @@ def _row(i0, i1, base, mask, start):
 
 
 @njit(cache=True, parallel=True)
-def _neighbour_lists(pos, start, keys, cells, dims, h, nbr, count):
-    """Neighbours closer than h of every sorted point (itself excluded), up to nbr.shape[1] each; count gets all.
+def _neighbour_lists(pos, order, start, keys, cells, dims, h, nbr, count):
+    """Neighbours closer than h of every point (itself excluded), up to nbr.shape[1] each; count gets all.
 
-    Cells are of edge h; the 27 around a point are scanned row by row, appending without branches.
+    ``order``, ``start``, ``keys`` and ``cells`` are the grid of cell edge h
+    (:func:`_particle_grid`); the 27 cells around a point are scanned row by
+    row, appending without branches.
     """
     mask = start.shape[0] - 2
     last = nbr.shape[1] - 1
     h2 = h * h
-    for i in prange(pos.shape[0]):
+    for s in prange(pos.shape[0]):
+        i = order[s]
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         c = 0
-        for ck in range(max(cells[i, 2] - 1, 0), min(cells[i, 2] + 2, dims[2])):
-            for cj in range(max(cells[i, 1] - 1, 0), min(cells[i, 1] + 2, dims[1])):
-                k0, k1, a0, a1, w0, w1 = _row(max(cells[i, 0] - 1, 0), min(cells[i, 0] + 1, dims[0] - 1),
+        for ck in range(max(cells[s, 2] - 1, 0), min(cells[s, 2] + 2, dims[2])):
+            for cj in range(max(cells[s, 1] - 1, 0), min(cells[s, 1] + 2, dims[1])):
+                k0, k1, a0, a1, w0, w1 = _row(max(cells[s, 0] - 1, 0), min(cells[s, 0] + 1, dims[0] - 1),
                                               dims[0] * (cj + dims[1] * ck), mask, start)
                 for part in range(2):
                     lo_q, hi_q = (a0, a1) if part == 0 else (w0, w1)
                     for q in range(lo_q, hi_q):
-                        dx, dy, dz = px - pos[q, 0], py - pos[q, 1], pz - pos[q, 2]
-                        nbr[i, min(c, last)] = q
-                        c += (dx * dx + dy * dy + dz * dz < h2) & (q != i) & (keys[q] >= k0) & (keys[q] <= k1)
+                        j = order[q]
+                        dx, dy, dz = px - pos[j, 0], py - pos[j, 1], pz - pos[j, 2]
+                        nbr[i, min(c, last)] = j
+                        c += (dx * dx + dy * dy + dz * dz < h2) & (j != i) & (keys[q] >= k0) & (keys[q] <= k1)
         count[i] = c
 
 
@@ -527,8 +558,8 @@ def _face_data(points, faces):
 
 
 @njit(cache=True, parallel=True)
-def _face_cells(data, lo, size, dims):
-    """Bounding-box cell range (F, 6) of every face and its number of cells (F,)."""
+def _face_cells(data, lo, size, dims, margin):
+    """Cell range (F, 6) of every face's bounding box grown by ``margin`` and its number of cells (F,)."""
     n = data.shape[0]
     box = np.empty((n, 6), np.int64)
     cnt = np.empty(n, np.int64)
@@ -536,8 +567,8 @@ def _face_cells(data, lo, size, dims):
         total = 1
         for a in range(3):
             x0, x1, x2 = data[f, a], data[f, 3 + a], data[f, 6 + a]
-            c0 = min(max(int(np.floor((min(x0, min(x1, x2)) - lo[a]) / size)), 0), dims[a] - 1)
-            c1 = min(max(int(np.floor((max(x0, max(x1, x2)) - lo[a]) / size)), 0), dims[a] - 1)
+            c0 = min(max(int(np.floor((min(x0, min(x1, x2)) - margin - lo[a]) / size)), 0), dims[a] - 1)
+            c1 = min(max(int(np.floor((max(x0, max(x1, x2)) + margin - lo[a]) / size)), 0), dims[a] - 1)
             box[f, a] = c0
             box[f, a + 3] = c1
             total *= c1 - c0 + 1
@@ -561,42 +592,85 @@ def _face_entries(box, offset, dims, mask, bucket, key, face, first):
                     q += 1
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _bucket_sort(bucket, key, face, first, table):
-    """Stable counting sort of the entries by bucket: (start (T + 1,), keys, faces, firsts)."""
+    """Stable counting sort of the entries by bucket: (start (T + 1,), keys, faces, firsts).
+
+    The entries are split in CHUNKS fixed chunks, counted and placed in parallel.
+    """
+    n = bucket.shape[0]
+    counts = np.zeros((CHUNKS, table), np.int64)
+    for c in prange(CHUNKS):
+        lo, hi = chunk_range(n, c)
+        for q in range(lo, hi):
+            counts[c, bucket[q]] += 1
     start = np.zeros(table + 1, np.int64)
-    for q in range(bucket.shape[0]):
-        start[bucket[q] + 1] += 1
-    for b in range(table):
-        start[b + 1] += start[b]
-    fill = start[:-1].copy()
-    keys = np.empty(bucket.shape[0], np.int64)
-    items = np.empty(bucket.shape[0], np.int64)
-    firsts = np.empty(bucket.shape[0], np.int64)
-    for q in range(bucket.shape[0]):
-        b = bucket[q]
-        keys[fill[b]] = key[q]
-        items[fill[b]] = face[q]
-        firsts[fill[b]] = first[q]
-        fill[b] += 1
+    for b in range(table):  # counts become each chunk's first slot in the bucket
+        total = start[b]
+        for c in range(CHUNKS):
+            count = counts[c, b]
+            counts[c, b] = total
+            total += count
+        start[b + 1] = total
+    keys = np.empty(n, np.int64)
+    items = np.empty(n, np.int64)
+    firsts = np.empty(n, np.int64)
+    for c in prange(CHUNKS):
+        lo, hi = chunk_range(n, c)
+        for q in range(lo, hi):
+            b = bucket[q]
+            slot = counts[c, b]
+            keys[slot] = key[q]
+            items[slot] = face[q]
+            firsts[slot] = first[q]
+            counts[c, b] = slot + 1
     return start, keys, items, firsts
 
 
-def _mesh_grid(points: np.ndarray, faces: np.ndarray, radius: float) -> tuple:
-    """Face data and hashed bounding-box grid of a mesh, as the tuple the collision kernels take."""
+@njit(cache=True)
+def _bounds(points, data):
+    """Lower and upper corners of ``points`` and the mean length of the faces' first edges."""
+    lo = points[0].copy()
+    hi = points[0].copy()
+    for i in range(points.shape[0]):
+        for a in range(3):
+            lo[a] = min(lo[a], points[i, a])
+            hi[a] = max(hi[a], points[i, a])
+    total = 0.0
+    for f in range(data.shape[0]):
+        total += v3.norm(v3.sub(_corner(data, f, 1), _corner(data, f, 0)))
+    return lo, hi, total / max(data.shape[0], 1)
+
+
+@njit(cache=True, parallel=True)
+def _largest_move(points, before):
+    """Largest coordinate change of any point (deterministic: a maximum)."""
+    moved = np.zeros(points.shape[0])
+    for i in prange(points.shape[0]):
+        moved[i] = max(abs(points[i, 0] - before[i, 0]), abs(points[i, 1] - before[i, 1]),
+                       abs(points[i, 2] - before[i, 2]))
+    return moved.max() if points.shape[0] else 0.0
+
+
+def _mesh_grid(points: np.ndarray, faces: np.ndarray, radius: float) -> tuple[tuple, float]:
+    """Face data and hashed bounding-box grid of a mesh, as the tuple the collision kernels take, and its margin.
+
+    Faces are listed in the cells of their bounding boxes grown by the margin
+    (:data:`_MARGIN` of a cell), so the grid stays valid while no point moves farther.
+    """
     data = _face_data(points, faces)
-    lo = points.min(axis=0)
-    extent = points.max(axis=0) - lo
-    edge = float(np.sqrt(((data[:, 3:6] - data[:, 0:3]) ** 2).sum(axis=1)).mean())
-    size = max(PLANE_REACH * radius, edge, float(extent.max()) / (_MESH_CELLS - 1))
-    dims = np.floor(extent / size).astype(np.int64) + 1
-    box, cnt = _face_cells(data, lo, size, dims)
+    lo, hi, edge = _bounds(points, data)
+    size = max(_MESH_CELL * radius, edge, float((hi - lo).max()) / (_MESH_CELLS - 2))
+    margin = _MARGIN * size
+    lo = lo - margin
+    dims = np.floor((hi + margin - lo) / size).astype(np.int64) + 1
+    box, cnt = _face_cells(data, lo, size, dims, margin)
     offset = np.zeros(len(faces) + 1, np.int64)
     np.cumsum(cnt, out=offset[1:])
-    table = int(_table_size(int(offset[-1]) // 2))
+    table = int(_table_size(int(offset[-1]) // 4))
     bucket, key, face, first = (np.empty(offset[-1], np.int64) for _ in range(4))
     _face_entries(box, offset, dims, table - 1, bucket, key, face, first)
-    return (data, lo, size, dims) + _bucket_sort(bucket, key, face, first, table)
+    return (data, lo, size, dims) + _bucket_sort(bucket, key, face, first, table), margin
 
 
 def _empty_grid() -> tuple:
@@ -660,19 +734,26 @@ def _closest_on_boundary(p, a, b, c):
     return best
 
 
+@njit(cache=True, inline="always")
+def _nearer(dist, f, other_dist, other_face):
+    """Whether (dist, f) comes before (other_dist, other_face): nearer, or as near with a lower face index."""
+    return dist < other_dist or (dist == other_dist and f < other_face)
+
+
 @njit(cache=True)
 def _keep_plane(planes, plane_face, i, taken, data, f, u, offset, dist):
     """Offer face ``f`` (plane ``u . x = offset`` at ``dist``) as a boundary plane of particle ``i``.
 
     A face turned less than 30 degrees from a plane already kept replaces it
     when nearer; otherwise it takes a free slot, or the farthest one's when
-    nearer. Returns the number of planes kept.
+    nearer (ties go to the lower face index, so the visiting order does not
+    matter). Returns the number of planes kept.
     """
     n = _corner(data, f, 3)
     slot = -1
     for k in range(taken):
         if v3.dot(n, _corner(data, plane_face[i, k], 3)) > _PLANE_COS:
-            if dist >= planes[i, k, 4]:
+            if not _nearer(dist, f, planes[i, k, 4], plane_face[i, k]):
                 return taken
             slot = k
             break
@@ -683,9 +764,9 @@ def _keep_plane(planes, plane_face, i, taken, data, f, u, offset, dist):
         else:
             slot = 0
             for k in range(1, MAX_PLANES):
-                if planes[i, k, 4] > planes[i, slot, 4]:
+                if _nearer(planes[i, slot, 4], plane_face[i, slot], planes[i, k, 4], plane_face[i, k]):
                     slot = k
-            if dist >= planes[i, slot, 4]:
+            if not _nearer(dist, f, planes[i, slot, 4], plane_face[i, slot]):
                 return taken
     planes[i, slot, 0], planes[i, slot, 1], planes[i, slot, 2] = u
     planes[i, slot, 3] = offset
@@ -694,18 +775,35 @@ def _keep_plane(planes, plane_face, i, taken, data, f, u, offset, dist):
     return taken
 
 
-@njit(cache=True)
-def _boundary(p, r, grid, planes, plane_face, i):
-    """Push-out of particle ``i`` at ``p`` and its boundary planes within PLANE_REACH r.
+@njit(cache=True, inline="always")
+def _covered(planes, plane_face, i, taken, data, f, n, s):
+    """Whether a plane kept for particle ``i`` on the same wall as face ``f`` (normal ``n``) beats distance ``s``.
 
-    Returns the new position, the last face that moved it (-1: none), the
-    direction it was moved along and the number of planes kept.
+    ``s``, the distance to a face's plane, bounds the distance to the face
+    from below, so such a face cannot replace the kept plane.
+    """
+    for k in range(taken):
+        if ((planes[i, k, 4] < s or (planes[i, k, 4] == s and plane_face[i, k] < f))
+                and v3.dot(n, _corner(data, plane_face[i, k], 3)) > _PLANE_COS):
+            return True
+    return False
+
+
+@njit(cache=True)
+def _search(p, r, slack, grid, planes, plane_face, i):
+    """Boundary planes of particle ``i`` at ``p``: faces it is over within PLANE_REACH r, edges and corners
+    within r, and the face it is less than r behind (when no face it is over is nearer).
+
+    Returns the number of planes kept and whether no face at all is listed
+    within PLANE_REACH r + ``slack`` of ``p`` along any axis (then no motion
+    inside that box meets a face).
     """
     data, lo, size, dims, start, keys, items, firsts = grid
     reach = PLANE_REACH * r
-    i0, j0, k0, i1, j1, k1 = _cell_box(v3.sub(p, (reach, reach, reach)), v3.add(p, (reach, reach, reach)),
-                                       lo, size, dims)
+    box = reach + slack
+    i0, j0, k0, i1, j1, k1 = _cell_box(v3.sub(p, (box, box, box)), v3.add(p, (box, box, box)), lo, size, dims)
     mask = start.shape[0] - 2
+    clear = True
     taken = 0
     nearest = r  # the face it is over with the smallest |distance| below r, for the behind rule
     over_face = -1
@@ -720,44 +818,52 @@ def _boundary(p, r, grid, planes, plane_face, i):
                     if keys[q] < key0 or keys[q] > key1 or not _first_visit(firsts[q], keys[q], base, i0, j, k, j0,
                                                                              k0):
                         continue
+                    clear = False
                     f = items[q]
                     n = _corner(data, f, 3)
                     a = _corner(data, f, 0)
                     s = v3.dot(n, v3.sub(p, a))
-                    if s <= -r or s >= reach or (n[0] == 0.0 and n[1] == 0.0 and n[2] == 0.0):
+                    if (s <= -r or s >= reach or (n[0] == 0.0 and n[1] == 0.0 and n[2] == 0.0)
+                            or (s >= 0.0 and _covered(planes, plane_face, i, taken, data, f, n, s))):
                         continue
                     b, c = _corner(data, f, 1), _corner(data, f, 2)
                     if _over(p, a, b, c, n):
-                        if abs(s) < nearest:
+                        if _nearer(abs(s), f, nearest, over_face if over_face >= 0 else data.shape[0]):
                             nearest = abs(s)
                             over_face = f
                             over_s = s
                         if s >= 0.0:
                             taken = _keep_plane(planes, plane_face, i, taken, data, f, n, v3.dot(n, a), s)
-                    elif s >= 0.0:
+                    elif 0.0 <= s < r:
                         e = _closest_on_boundary(p, a, b, c)
                         d = v3.sub(p, e)
                         dist = v3.norm(d)
-                        if 0.0 < dist < reach:
+                        if 0.0 < dist < r:
                             u = v3.scale(d, 1.0 / dist)
                             taken = _keep_plane(planes, plane_face, i, taken, data, f, u, v3.dot(u, e), dist)
+    if over_face >= 0 and over_s < 0.0:  # behind the nearest face it is over: to its front
+        n = _corner(data, over_face, 3)
+        taken = _keep_plane(planes, plane_face, i, taken, data, over_face, n, v3.dot(n, _corner(data, over_face, 0)),
+                            0.0)
+    return taken, clear
+
+
+@njit(cache=True)
+def _plane_push(p, r, planes, taken, plane_face, i):
+    """Move ``p`` to ``r`` in front of the first ``taken`` boundary planes of particle ``i``.
+
+    Returns the new position, the face of the last plane that moved it (-1: none) and that plane's direction.
+    """
     contact = -1
     push = (0.0, 0.0, 0.0)
-    if over_face >= 0 and over_s < 0.0:  # behind the nearest face it is over: to the front
-        n = _corner(data, over_face, 3)
-        p = v3.add(p, v3.scale(n, r - over_s))
-        contact = over_face
-        push = n
-        taken = _keep_plane(planes, plane_face, i, taken, data, over_face, n, v3.dot(n, _corner(data, over_face, 0)),
-                            r)
-    for m in range(taken):
-        u = (planes[i, m, 0], planes[i, m, 1], planes[i, m, 2])
-        delta = v3.dot(u, p) - planes[i, m, 3]
+    for k in range(taken):
+        u = (planes[i, k, 0], planes[i, k, 1], planes[i, k, 2])
+        delta = v3.dot(u, p) - planes[i, k, 3]
         if delta < r:
             p = v3.add(p, v3.scale(u, r - delta))
-            contact = plane_face[i, m]
+            contact = plane_face[i, k]
             push = u
-    return p, contact, push, taken
+    return p, contact, push
 
 
 @njit(cache=True)
@@ -794,7 +900,7 @@ def _first_crossing(x0, x1, grid):
                         if not (s0 >= 0.0 and s1 < 0.0):
                             continue
                         t = s0 / (s0 - s1)
-                        if t >= best_t:
+                        if not _nearer(t, f, best_t, best_f if best_f >= 0 else data.shape[0]):
                             continue
                         b, c = _corner(data, f, 1), _corner(data, f, 2)
                         y = v3.add(x0, v3.scale(seg, t))
@@ -841,36 +947,62 @@ def _clamp(p, r, wlo, whi):
             min(max(p[2], wlo[2] + r), whi[2] - r))
 
 
+@njit(cache=True, inline="always")
+def _near(p, anchor, slack):
+    """Whether ``p`` is within ``slack`` of ``anchor`` along every axis (False for a NaN anchor)."""
+    return abs(p[0] - anchor[0]) <= slack and abs(p[1] - anchor[1]) <= slack and abs(p[2] - anchor[2]) <= slack
+
+
 @njit(cache=True, parallel=True)
-def _collide(pos, start, r, grid, friction, boundary, walls, wlo, whi, contact, normal, planes, n_planes,
-             plane_face):
+def _collide(pos, start, r, grid, friction, boundary, walls, wlo, whi, contact, normal, anchor, slack, clear,
+             planes, n_planes, plane_face):
     """Mesh collision and walls for every particle, in place.
 
     In order: ``friction`` (at the particles that touched the mesh this
-    substep), the swept test from ``start``, when ``boundary`` the push-out
-    and the boundary planes (into ``planes`` (N, MAX_PLANES, 5): direction,
-    offset, distance; ``n_planes``; ``plane_face``), and the clamp into the
-    walls. ``contact`` and ``normal`` receive the face and direction of the
-    latest contact.
+    substep); when ``boundary``, the boundary planes (searched afresh at
+    ``pos`` by :func:`_search` unless ``start`` and ``pos`` lie within
+    ``slack`` of the last search's ``anchor``; then ``slack`` becomes
+    ``max(_REUSE r, 1.5 |pos - start|)``, enough for the next substep too)
+    and the push-out of ``start`` itself, moving ``pos`` along (a mesh that
+    moved over a particle gives it no velocity); the swept test from
+    ``start`` (skipped when the last search listed no face and both ends lie
+    within its slack); when ``boundary``, the push-out of ``pos``; the clamp
+    into the walls. ``contact`` and ``normal`` receive the face and
+    direction of the latest contact.
     """
     has_mesh = grid[0].shape[0] > 0
     for i in prange(pos.shape[0]):
         p = v3.row(pos, i)
         x0 = v3.row(start, i)
+        a = v3.row(anchor, i)
         if friction > 0.0 and contact[i] >= 0:
             n = v3.row(normal, i)
             move = v3.sub(p, x0)
             p = v3.sub(p, v3.scale(v3.sub(move, v3.scale(n, v3.dot(n, move))), friction))
-        if has_mesh:
+        if has_mesh and boundary:
+            if not (_near(x0, a, slack[i]) and _near(p, a, slack[i])):
+                move = v3.sub(p, x0)
+                slack[i] = max(_REUSE * r, 1.5 * max(abs(move[0]), abs(move[1]), abs(move[2])))
+                a = p
+                v3.store(anchor, i, a)
+                n_planes[i], clear[i] = _search(p, r, slack[i], grid, planes, plane_face, i)
+            y, f, n = _plane_push(x0, r, planes, n_planes[i], plane_face, i)
+            if f >= 0:
+                p = v3.add(p, v3.sub(y, x0))
+                x0 = y
+                v3.store(start, i, y)
+                contact[i] = f
+                v3.store(normal, i, n)
+        if has_mesh and not (clear[i] and _near(x0, a, slack[i]) and _near(p, a, slack[i])):
             p, f, n = _sweep(x0, p, r, grid)
             if f >= 0:
                 contact[i] = f
                 v3.store(normal, i, n)
-            if boundary:
-                p, f, n, n_planes[i] = _boundary(p, r, grid, planes, plane_face, i)
-                if f >= 0:
-                    contact[i] = f
-                    v3.store(normal, i, n)
+        if has_mesh and boundary:
+            p, f, n = _plane_push(p, r, planes, n_planes[i], plane_face, i)
+            if f >= 0:
+                contact[i] = f
+                v3.store(normal, i, n)
         if walls:
             p = _clamp(p, r, wlo, whi)
         v3.store(pos, i, p)
@@ -932,11 +1064,29 @@ def _boundary_density(p, i, r, h2, kw, planes, n_planes, walls, wlo, whi):
     return rho, (gx, gy, gz)
 
 
+@njit(cache=True, parallel=True)
+def _gather(pos, vel, order, x, v):
+    """x = pos[order], v = vel[order]."""
+    for s in prange(order.shape[0]):
+        v3.store(x, s, v3.row(pos, order[s]))
+        v3.store(v, s, v3.row(vel, order[s]))
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def _predict(pos, vel, gravity, dt, out):
     """out = x + (v + g dt) dt."""
     for i in prange(pos.shape[0]):
         v3.store(out, i, v3.add(v3.row(pos, i), v3.scale(v3.add(v3.row(vel, i), v3.scale(gravity, dt)), dt)))
+
+
+@njit(cache=True, parallel=True)
+def _scatter(order, x, v, touched, pos, vel, contact_face):
+    """pos[order] = x, vel[order] = v, contact_face[order] = touched."""
+    for s in prange(order.shape[0]):
+        i = order[s]
+        v3.store(pos, i, v3.row(x, s))
+        v3.store(vel, i, v3.row(v, s))
+        contact_face[i] = touched[s]
 
 
 @njit(cache=True, parallel=True, fastmath=_PAIRS, error_model="numpy")
@@ -998,14 +1148,11 @@ def _corrections(pos, nbr, count, lam, kern, fraction, planes, n_planes, plane_f
             dy_sum += s * dy
             dz_sum += s * dz
         scale = fraction * inv_rho0
-        p = (p[0] + dx_sum * scale, p[1] + dy_sum * scale, p[2] + dz_sum * scale)
-        for k in range(n_planes[i]):
-            u = (planes[i, k, 0], planes[i, k, 1], planes[i, k, 2])
-            delta = v3.dot(u, p) - planes[i, k, 3]
-            if delta < r:
-                p = v3.add(p, v3.scale(u, r - delta))
-                contact[i] = plane_face[i, k]
-                v3.store(normal, i, u)
+        p, f, u = _plane_push((p[0] + dx_sum * scale, p[1] + dy_sum * scale, p[2] + dz_sum * scale), r, planes,
+                              n_planes[i], plane_face, i)
+        if f >= 0:
+            contact[i] = f
+            v3.store(normal, i, u)
         if walls:
             p = _clamp(p, r, wlo, whi)
         v3.store(out, i, p)
@@ -1071,6 +1218,22 @@ def _uniforms(rng, n):
 
 
 # --- the fluid -----------------------------------------------------------------------------------------------------
+
+
+class _Work:
+    """Particle arrays of one step, in cell order (``order``: index of each row in the public arrays)."""
+
+    def __init__(self, n: int, order: np.ndarray) -> None:
+        self.order = order
+        self.x = np.empty((n, 3))
+        self.v = np.empty((n, 3))
+        self.touched = np.full(n, -1, np.int64)  # face of the latest contact in the step
+        self.anchor = np.full((n, 3), np.nan)  # where the mesh was last searched for boundary planes
+        self.slack = np.zeros(n)  # how far from the anchor that search holds
+        self.clear = np.zeros(n, np.bool_)
+        self.planes = np.empty((n, MAX_PLANES, 5))
+        self.n_planes = np.zeros(n, np.int64)
+        self.plane_face = np.empty((n, MAX_PLANES), np.int64)
 
 
 class ParticleFluid:
@@ -1157,13 +1320,14 @@ class ParticleFluid:
         # r, h, poly6 and spiky constants, 1 / rho0, epsilon, solid scale, 1 / W(dq), tensile k / S
         self._kern = np.array([params.radius, h, self._k6, 45.0 / (math.pi * h**6), 1.0 / rho0,
                                params.relaxation * grad2, kw, 1.0 / _poly6((TENSILE_DISTANCE * h) ** 2, h),
-                               TENSILE_STRENGTH / grad2, JACOBI_WEIGHT])
+                               params.tensile / grad2, JACOBI_WEIGHT])
         self._rng = np.array([int(seed) % (1 << 64)], np.uint64)
         self._advance = np.zeros(len(emitters))
         self._next_id = 0
         self._capacity = 64
         self._nbr = np.empty((0, self._capacity), np.int32)
         self._grid = _empty_grid()
+        self._mesh: tuple | None = None  # points, faces and margin of the last grid build
         self.positions = np.zeros((0, 3))
         self.velocities = np.zeros((0, 3))
         self.ids = np.zeros(0, np.int64)
@@ -1259,30 +1423,42 @@ class ParticleFluid:
         """
         if points is None or faces is None or np.size(faces) == 0:
             self._grid = _empty_grid()
+            self._mesh = None
             return
         pts, fcs = as_triangle_mesh(points, faces)
-        self._grid = _mesh_grid(pts, fcs, self.params.radius)
+        if (self._mesh is not None and pts.shape == self._mesh[0].shape and np.array_equal(fcs, self._mesh[1])
+                and _largest_move(pts, self._mesh[0]) < self._mesh[2]):
+            self._grid = (_face_data(pts, fcs),) + self._grid[1:]  # refit: the faces are still in their cells
+            return
+        self._grid, margin = _mesh_grid(pts, fcs, self.params.radius)
+        self._mesh = (pts.copy(), fcs.copy(), margin)
 
     # -- stepping ------------------------------------------------------------------------------------------------
 
     def step(self) -> None:
-        """Advance one time step: emission, then ``substeps`` substeps with collisions and drains."""
+        """Advance one time step: emission, ``substeps`` substeps with collisions, then drains."""
         self._check_arrays()
         times = dict.fromkeys(PHASES, 0.0)
         clock = time.perf_counter()
         self._emit()
-        self.contact_face = np.full(len(self.positions), -1, np.int64)
-        times["emit_drain"] += time.perf_counter() - clock
-        dt = self.dt / self.params.substeps
-        for _ in range(self.params.substeps):
-            self._substep(dt, times)
+        n = len(self.positions)
+        self.contact_face = np.full(n, -1, np.int64)
+        clock = self._lap(times, "emit_drain", clock)
+        if n:
+            # the particles in cell order for the whole step, for locality
+            work = _Work(n, _particle_grid(self.positions, self.domain[0], self.params.kernel_radius)[0])
+            _gather(self.positions, self.velocities, work.order, work.x, work.v)
+            self._lap(times, "neighbours", clock)
+            for _ in range(self.params.substeps):
+                self._substep(work, self.dt / self.params.substeps, times)
             clock = time.perf_counter()
-            self._drain()
-            times["emit_drain"] += time.perf_counter() - clock
-        clock = time.perf_counter()
+            _scatter(work.order, work.x, work.v, work.touched, self.positions, self.velocities, self.contact_face)
+            clock = self._lap(times, "solve", clock)
+        self._drain()
+        clock = self._lap(times, "emit_drain", clock)
         self.contact_distance = np.empty(len(self.positions))
         _plane_distances(self.positions, self.contact_face, self._grid[0], self.contact_distance)
-        times["collision"] += time.perf_counter() - clock
+        self._lap(times, "collision", clock)
         self.steps += 1
         if self.profile is not None:
             for name in PHASES:
@@ -1317,63 +1493,50 @@ class ParticleFluid:
             self._append(pos, np.concatenate([b[1] for b in blocks]))
             self.emitted += len(pos)
 
-    def _substep(self, dt: float, times: dict[str, float]) -> None:
-        n = len(self.positions)
-        if n == 0:
-            return
+    def _substep(self, work: _Work, dt: float, times: dict[str, float]) -> None:
         prm = self.params
         r, h = prm.radius, prm.kernel_radius
         lo, hi = self.domain
+        n = len(work.x)
         clock = time.perf_counter()
-        pred = np.empty_like(self.positions)
-        _predict(self.positions, self.velocities, np.array(prm.gravity), dt, pred)
-        clock = self._lap(times, "solve", clock)
-        # cell order of the predicted positions for the collisions, then of the collided ones for the neighbours
-        order = _particle_grid(pred, lo, h)[0]
-        xs, ps = self.positions[order], pred[order]
+        ps = np.empty((n, 3))
+        _predict(work.x, work.v, np.array(prm.gravity), dt, ps)
         contact = np.full(n, -1, np.int64)
         normal = np.zeros((n, 3))
-        planes = np.empty((n, MAX_PLANES, 5))
-        n_planes = np.zeros(n, np.int64)
-        plane_face = np.empty((n, MAX_PLANES), np.int64)
-        clock = self._lap(times, "neighbours", clock)
-        _collide(ps, xs, r, self._grid, 0.0, True, self.walls, lo, hi, contact, normal, planes, n_planes, plane_face)
+        clock = self._lap(times, "solve", clock)
+        _collide(ps, work.x, r, self._grid, 0.0, True, self.walls, lo, hi, contact, normal, work.anchor, work.slack,
+                 work.clear, work.planes, work.n_planes, work.plane_face)
         clock = self._lap(times, "collision", clock)
-        again, start, keys, cells, dims = _particle_grid(ps, lo, h)
-        order = order[again]
-        xs, ps, contact, normal = xs[again], ps[again], contact[again], normal[again]
-        planes, n_planes, plane_face = planes[again], n_planes[again], plane_face[again]
-        nbr, count = self._neighbours(ps, start, keys, cells, dims)
+        nbr, count = self._neighbours(ps)
         clock = self._lap(times, "neighbours", clock)
         lam = np.empty(n)
         buffer = np.empty_like(ps)
         for it in range(prm.solver_iterations):
             fraction = LAST_WEIGHT if it == prm.solver_iterations - 1 else 1.0
-            _lambdas(ps, nbr, count, self._kern, planes, n_planes, self.walls, lo, hi, lam)
-            _corrections(ps, nbr, count, lam, self._kern, fraction, planes, n_planes, plane_face, self.walls, lo, hi,
-                         contact, normal, buffer)
+            _lambdas(ps, nbr, count, self._kern, work.planes, work.n_planes, self.walls, lo, hi, lam)
+            _corrections(ps, nbr, count, lam, self._kern, fraction, work.planes, work.n_planes, work.plane_face,
+                         self.walls, lo, hi, contact, normal, buffer)
             ps, buffer = buffer, ps
         clock = self._lap(times, "solve", clock)
-        _collide(ps, xs, r, self._grid, prm.friction, False, self.walls, lo, hi, contact, normal, planes, n_planes,
-                 plane_face)
+        _collide(ps, work.x, r, self._grid, prm.friction, False, self.walls, lo, hi, contact, normal, work.anchor,
+                 work.slack, work.clear, work.planes, work.n_planes, work.plane_face)
         clock = self._lap(times, "collision", clock)
-        vs = np.empty_like(ps)
-        _velocities(ps, xs, nbr, count, dt, h, self._k6, prm.viscosity / self._rho0, contact, normal, buffer, vs)
-        self.positions[order] = ps
-        self.velocities[order] = vs
-        touched = contact >= 0
-        self.contact_face[order[touched]] = contact[touched]
+        _velocities(ps, work.x, nbr, count, dt, h, self._k6, prm.viscosity / (self._k6 * h**6), contact, normal, buffer,
+                    work.v)
+        work.x = ps
+        np.copyto(work.touched, contact, where=contact >= 0)
         self._lap(times, "solve", clock)
 
-    def _neighbours(self, ps, start, keys, cells, dims) -> tuple[np.ndarray, np.ndarray]:
-        """Neighbour lists (N, capacity) int32 (a reused buffer) and counts of the sorted points ``ps``."""
+    def _neighbours(self, ps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Neighbour lists (N, capacity) int32 (a reused buffer) and counts of the points ``ps``."""
         h = self.params.kernel_radius
+        order, start, keys, cells, dims = _particle_grid(ps, self.domain[0], h)
         count = np.empty(len(ps), np.int64)
         while True:
             if self._nbr.shape[0] < len(ps) or self._nbr.shape[1] != self._capacity:
                 self._nbr = np.empty((max(len(ps), self._nbr.shape[0]), self._capacity), np.int32)
             nbr = self._nbr[:len(ps)]
-            _neighbour_lists(ps, start, keys, cells, dims, h, nbr, count)
+            _neighbour_lists(ps, order, start, keys, cells, dims, h, nbr, count)
             most = int(count.max())
             if most <= self._capacity:
                 return nbr, count
@@ -1406,13 +1569,8 @@ class ParticleFluid:
         out = np.empty(n)
         if n == 0:
             return out
-        h = self.params.kernel_radius
-        order, start, keys, cells, dims = _particle_grid(self.positions, self.domain[0], h)
-        ps = self.positions[order]
-        nbr, count = self._neighbours(ps, start, keys, cells, dims)
-        sorted_density = np.empty(n)
-        _density_sum(ps, nbr, count, h, self._k6, 1.0 / self._rho0, sorted_density)
-        out[order] = sorted_density
+        nbr, count = self._neighbours(self.positions)
+        _density_sum(self.positions, nbr, count, self.params.kernel_radius, self._k6, 1.0 / self._rho0, out)
         return out
 
     # -- snapshots -------------------------------------------------------------------------------------------------
