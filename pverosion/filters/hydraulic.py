@@ -13,14 +13,13 @@ from vtkmodules.vtkCommonDataModel import vtkPolyData
 
 from pverosion.filters.base import (
     Param,
-    TimeSteppedFilter,
     polydata_triangles,
     set_field_value,
     set_multiblock,
     set_point_array,
 )
 from pverosion.filters.materials import parse_numbers
-from pverosion.filters.weathering import ErodibilityInput, weathering_output
+from pverosion.filters.weathering import MeshSolverFilter, weathering_output
 from pverosion.kernels.geometry import average_edge_length
 from pverosion.kernels.hydraulic_erosion import MODELS, HydraulicSolver, ShearParameters
 from pverosion.kernels.orientation import ORIENTATIONS
@@ -54,7 +53,7 @@ def particles_polydata(solver: HydraulicSolver) -> pv.PolyData:
     return cloud
 
 
-class HydraulicErosion(ErodibilityInput, TimeSteppedFilter):
+class HydraulicErosion(MeshSolverFilter):
     """Hydraulic erosion on a triangle mesh by our own particle fluid (Skorkovská 2019 §3.4; thesis ch. 8).
 
     Water enters from disc emitters, flows over the closed, outward-oriented
@@ -115,11 +114,6 @@ class HydraulicErosion(ErodibilityInput, TimeSteppedFilter):
         Param("seed", 0, "Seed of the fluid's random numbers.", minimum=0),
     )
 
-    def __init__(self, *, erodibility=None, **options):
-        super().__init__(erodibility=erodibility, **options)
-        self._solver: HydraulicSolver | None = None
-        self._key: tuple | None = None
-
     def _new_solver(self, inp) -> HydraulicSolver:
         points, faces = polydata_triangles(inp)
         emitters = parse_emitters(self.get_option("emitter"))
@@ -146,22 +140,7 @@ class HydraulicErosion(ErodibilityInput, TimeSteppedFilter):
             check_every=self.get_option("check_every"), orientation=self.get_option("orientation"),
             seed=self.get_option("seed"))
 
-    def execute(self, inp, out) -> None:
-        """Advance (or restart) the cached solver to the requested iteration and fill ``out``."""
-        step = self.requested_step()
-        key = (inp.GetMTime(), self.GetMTime())
-        if self._solver is None or self._key != key or self._solver.step_count > step:
-            self._solver = None
-            self._solver = self._new_solver(inp)
-            self._key = key
-        solver = self._solver
-        start = solver.step_count
-        total = max(step - start, 1)
-
-        def progress(s: HydraulicSolver) -> None:
-            self.UpdateProgress(min((s.step_count - start) / total, 1.0))
-
-        solver.run(step - start, outputs=[step], on_step=progress)
+    def _fill(self, solver: HydraulicSolver, inp, out) -> None:
         mesh = vtkPolyData()
         weathering_output(solver, inp, mesh, prefix="hydraulic")
         set_point_array(mesh, "f_distance", solver.f_distance)
@@ -169,4 +148,3 @@ class HydraulicErosion(ErodibilityInput, TimeSteppedFilter):
         set_field_value(mesh, "model", solver.model)
         set_field_value(mesh, "time", solver.fluid.time)
         set_multiblock(out, pv.MultiBlock({"mesh": pv.wrap(mesh), "particles": particles_polydata(solver)}))
-        out.GetInformation().Set(out.DATA_TIME_STEP(), float(step))

@@ -18,7 +18,7 @@ from pverosion.kernels.mesh_evolution import GuardedMeshSolver
 from pverosion.kernels.orientation import ORIENTATIONS
 from pverosion.kernels.weathering import DIRECTIONS, Erodibility, WeatheringSolver
 
-__all__ = ["ErodibilityInput", "Weathering", "weathering_output"]
+__all__ = ["MeshSolverFilter", "Weathering", "weathering_output"]
 
 
 def weathering_output(solver: GuardedMeshSolver, source, out, *, prefix: str = "weathering") -> None:
@@ -59,12 +59,46 @@ def weathering_output(solver: GuardedMeshSolver, source, out, *, prefix: str = "
     set_field_value(out, "frozen_vertices", solver.frozen)
 
 
-class ErodibilityInput:
-    """Erodibility of a mesh stage: a Python value (array, callable, material field) or the ``erodibility_array``."""
+class MeshSolverFilter(TimeSteppedFilter):
+    """A stage over a :class:`~pverosion.kernels.mesh_evolution.GuardedMeshSolver`, kept between updates.
+
+    Subclasses build the solver in ``_new_solver(inp)`` and fill the output in
+    ``_fill(solver, inp, out)``. Asking for a later time continues the cached
+    solver; an earlier time, a new input or changed options start over. The
+    erodibility is a Python value (array, callable, material field) or the
+    ``erodibility_array`` option.
+    """
 
     def __init__(self, *, erodibility: Erodibility = None, **options):
         super().__init__(**options)
         self._erodibility = erodibility
+        self._solver: GuardedMeshSolver | None = None
+        self._key: tuple | None = None
+
+    def _new_solver(self, inp) -> GuardedMeshSolver:
+        raise NotImplementedError
+
+    def _fill(self, solver: GuardedMeshSolver, inp, out) -> None:
+        raise NotImplementedError
+
+    def execute(self, inp, out) -> None:
+        """Advance (or restart) the cached solver to the requested step and fill ``out``."""
+        step = self.requested_step()
+        key = (inp.GetMTime(), self.GetMTime())
+        if self._solver is None or self._key != key or self._solver.step_count > step:
+            self._solver = None
+            self._solver = self._new_solver(inp)
+            self._key = key
+        solver = self._solver
+        start = solver.step_count
+        total = max(step - start, 1)
+
+        def progress(s: GuardedMeshSolver) -> None:
+            self.UpdateProgress(min((s.step_count - start) / total, 1.0))
+
+        solver.run(step - start, outputs=[step], on_step=progress)
+        self._fill(solver, inp, out)
+        out.GetInformation().Set(out.DATA_TIME_STEP(), float(step))
 
     def set_erodibility(self, erodibility: Erodibility) -> None:
         """Per-vertex array (V,) or callable of points (N, 3) -> (N,); None for uniform."""
@@ -84,7 +118,7 @@ class ErodibilityInput:
         return values
 
 
-class Weathering(ErodibilityInput, TimeSteppedFilter):
+class Weathering(MeshSolverFilter):
     """Curvature-driven weathering (Skorkovská et al. 2019, §3.3).
 
     Convex vertices move along the unit uniform Laplacian by
@@ -119,38 +153,19 @@ class Weathering(ErodibilityInput, TimeSteppedFilter):
               choices=ORIENTATIONS),
     )
 
-    def __init__(self, *, erodibility: Erodibility = None, **options):
-        super().__init__(erodibility=erodibility, **options)
-        self._solver: WeatheringSolver | None = None
-        self._key: tuple | None = None
+    def _new_solver(self, inp) -> WeatheringSolver:
+        points, faces = polydata_triangles(inp)
+        return WeatheringSolver(
+            points,
+            faces,
+            power=self.get_option("power"),
+            step_divisor=self.get_option("step_divisor"),
+            direction=self.get_option("direction"),
+            erodibility=self._erodibility_for(inp),
+            min_edge_ratio=self.get_option("min_edge_ratio"),
+            check_every=self.get_option("check_every"),
+            orientation=self.get_option("orientation"),
+        )
 
-    def execute(self, inp, out) -> None:
-        """Advance (or restart) the cached solver to the requested step and fill ``out``."""
-        step = self.requested_step()
-        key = (inp.GetMTime(), self.GetMTime())
-        if self._solver is None or self._key != key or self._solver.step_count > step:
-            points, faces = polydata_triangles(inp)
-            self._solver = None
-            self._solver = WeatheringSolver(
-                points,
-                faces,
-                power=self.get_option("power"),
-                step_divisor=self.get_option("step_divisor"),
-                direction=self.get_option("direction"),
-                erodibility=self._erodibility_for(inp),
-                min_edge_ratio=self.get_option("min_edge_ratio"),
-                check_every=self.get_option("check_every"),
-                orientation=self.get_option("orientation"),
-            )
-            self._key = key
-        solver = self._solver
-        start = solver.step_count
-        total = max(step - start, 1)
-
-        def progress(s: WeatheringSolver) -> None:
-            self.UpdateProgress(min((s.step_count - start) / total, 1.0))
-
-        solver.run(step - start, outputs=[step], on_step=progress)
+    def _fill(self, solver: WeatheringSolver, inp, out) -> None:
         weathering_output(solver, inp, out)
-        out.GetInformation().Set(out.DATA_TIME_STEP(), float(step))
-
