@@ -164,3 +164,25 @@ def test_bad_options_are_named():
         HydraulicSolver(block.points, block.regular_faces, fluid=fluid, domain=((0, 0, 0), (-1, 1, 1)))
     with pytest.raises(ValueError, match="critical_stress"):
         ShearParameters(critical_stress=-1.0)
+
+
+def test_canyon_walls_are_undercut_and_particles_stay_out():
+    from pverosion.hydraulic_scenes import canyon_scene
+    from pverosion.kernels.overhangs import overhanging_vertices
+
+    scene = canyon_scene(n_faces=6000)
+    emitter = Emitter.parse(scene.emitters[0])
+    solver = HydraulicSolver(scene.mesh.points, scene.mesh.regular_faces, fluid=FluidParameters(radius=scene.radius),
+                             emitters=[emitter], drains=[Drain.parse(d) for d in scene.drains], domain=scene.domain)
+    start = np.asarray(scene.mesh.points, dtype=np.float64)
+    assert not overhanging_vertices(start, scene.mesh.regular_faces, mask=start[:, 2] > 1e-6).any()
+    deepest = 0.0
+    for _ in range(60):
+        solver.run(1)
+        surface = pv.PolyData.from_regular_faces(solver.points, solver.faces)
+        if len(solver.fluid.positions):
+            depth = -pv.PolyData(solver.fluid.positions).compute_implicit_distance(surface)["implicit_distance"]
+            deepest = max(deepest, float(depth.max()))
+    assert deepest <= scene.radius
+    above_base = solver.points[:, 2] > 1e-6
+    assert np.count_nonzero(overhanging_vertices(solver.points, solver.faces, mask=above_base)) > 0
