@@ -99,14 +99,15 @@ def test_tensile_term_pushes_close_particles_apart_and_conserves_momentum(tensil
         assert gap == R and np.all(fluid.velocities == 0.0)
 
 
-def _thin_plate():
-    return pv.Box(bounds=(-0.2 * R, 0.2 * R, -0.4, 0.4, -0.4, 0.4), level=2).triangulate()
+def _thin_plate(r):
+    """A closed plate half a particle radius thick, across the x axis."""
+    return pv.Box(bounds=(-0.25 * r, 0.25 * r, -0.4, 0.4, -0.4, 0.4), level=2).triangulate()
 
 
 @pytest.mark.parametrize("shape", ["sphere", "thin plate"])
 def test_fast_stream_never_enters_a_closed_object(shape):
     r = 0.02
-    solid = pv.Icosphere(radius=0.3, nsub=3) if shape == "sphere" else _thin_plate()
+    solid = pv.Icosphere(radius=0.3, nsub=3) if shape == "sphere" else _thin_plate(r)
     params = FluidParameters(radius=r)
     speed = 25.0
     assert speed * params.dt / params.substeps > 10 * r  # many radii per substep
@@ -185,6 +186,7 @@ def test_mesh_moved_over_a_particle_pushes_it_back_to_the_front():
     fluid.set_mesh(floor + [0.0, 0.0, 1.5 * R], faces)  # the floor rose past the particle's centre
     fluid.step()
     assert fluid.positions[0, 2] == pytest.approx(2.5 * R, rel=0.02)
+    assert np.abs(fluid.velocities[0]).max() < 1e-6  # moved, not launched
 
 
 def test_emitter_rate_speed_and_direction_without_speed():
@@ -304,11 +306,16 @@ def test_set_mesh_refits_and_rebuilds_and_clears():
         for _ in range(15):
             fluid.step()
         assert fluid.positions[:, 2].min() == pytest.approx(shift + R, rel=0.02)
-    fluid.set_mesh(points, faces[:-2])  # fewer faces (the roof opened): rebuilt
+    walls = faces[~np.all(points[faces][:, :, 2] == 1.0, axis=1)]  # fewer faces (no roof): rebuilt
+    fluid.set_mesh(points, walls)
+    for _ in range(15):
+        fluid.step()
+    assert fluid.positions[:, 2].min() == pytest.approx(R, rel=0.02)
+    assert np.all(fluid.contact_face < len(walls))
     fluid.set_mesh(None, None)
     for _ in range(5):
         fluid.step()
-    assert np.all(fluid.contact_face == -1)
+    assert np.all(fluid.contact_face == -1) and fluid.positions[:, 2].max() < 0.0
 
 
 def test_bad_input_is_named():
