@@ -148,7 +148,7 @@ def test_filter_time_steps_continue_from_the_cache():
     alg = Weathering(iterations=30)
     alg.SetInputDataObject(0, cube)
     alg.UpdateTimeStep(10)
-    assert alg._solver.step_count == 10
+    assert alg._cached.step_count == 10
     alg.UpdateTimeStep(30)
     stepped = pv.wrap(alg.GetOutputDataObject(0)).copy()
     direct = pverosion.weather(cube, iterations=30)

@@ -321,6 +321,21 @@ class TimeSteppedFilter(ErosionFilter):
         self._time = info.Get(SDDP.UPDATE_TIME_STEP()) if info.Has(SDDP.UPDATE_TIME_STEP()) else None
         return super().RequestData(request, in_info, out_info)
 
+    def cached_solver(self, inp, step: int, build: Callable[[Any], Any]) -> tuple[Any, bool]:
+        """The solver kept from the last update, or ``build(inp)`` when it cannot continue to ``step``.
+
+        A new solver is built when there is none, when the input or the
+        options changed since it was built, or when it has gone past
+        ``step`` (its ``step_count``). Returns ``(solver, is_new)``.
+        """
+        key = (inp.GetMTime(), self.GetMTime())
+        solver = getattr(self, "_cached", None)
+        if solver is None or self._cached_key != key or solver.step_count > step:
+            self._cached = None  # free the old solver before building the next
+            self._cached, self._cached_key = build(inp), key
+            return self._cached, True
+        return solver, False
+
     def requested_step(self) -> int:
         """The step the pipeline asked for, rounded and clamped to 0..iterations."""
         n = self.get_option("iterations")

@@ -341,8 +341,6 @@ class VoxelErosion(TimeSteppedFilter):
 
     def __init__(self, **options):
         super().__init__(**options)
-        self._solver: VoxelErosionSolver | None = None
-        self._key: tuple | None = None
         self._stats: dict[str, list[float]] = {}
 
     def _new_solver(self, inp) -> VoxelErosionSolver:
@@ -362,14 +360,10 @@ class VoxelErosion(TimeSteppedFilter):
     def execute(self, inp, out) -> None:
         """Advance (or restart) the cached solver to the requested step and fill ``out``."""
         step = self.requested_step()
-        key = (inp.GetMTime(), self.GetMTime())
-        if self._solver is None or self._key != key or self._solver.step_count > step:
-            self._solver = None
-            self._solver = self._new_solver(inp)
-            self._key = key
+        solver, new = self.cached_solver(inp, step, self._new_solver)
+        if new:
             self._stats = {}
-            self._record(self._solver, {})
-        solver = self._solver
+            self._record(solver, {})
         start = solver.step_count
         dt = self.get_option("time_step")
         while solver.step_count < step:

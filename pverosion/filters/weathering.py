@@ -72,8 +72,6 @@ class MeshSolverFilter(TimeSteppedFilter):
     def __init__(self, *, erodibility: Erodibility = None, **options):
         super().__init__(**options)
         self._erodibility = erodibility
-        self._solver: GuardedMeshSolver | None = None
-        self._key: tuple | None = None
 
     def _new_solver(self, inp) -> GuardedMeshSolver:
         raise NotImplementedError
@@ -84,12 +82,7 @@ class MeshSolverFilter(TimeSteppedFilter):
     def execute(self, inp, out) -> None:
         """Advance (or restart) the cached solver to the requested step and fill ``out``."""
         step = self.requested_step()
-        key = (inp.GetMTime(), self.GetMTime())
-        if self._solver is None or self._key != key or self._solver.step_count > step:
-            self._solver = None
-            self._solver = self._new_solver(inp)
-            self._key = key
-        solver = self._solver
+        solver, _ = self.cached_solver(inp, step, self._new_solver)
         start = solver.step_count
         total = max(step - start, 1)
 
