@@ -119,6 +119,11 @@ PLANE_REACH r plus the slack."""
 _MARGIN = 0.1
 """Faces are listed in the cells of their boxes grown by this fraction of a cell: set_mesh refits the grid
 instead of rebuilding it while the faces stay the same and no point has moved farther since the build."""
+_SPHERE_GROWTH = 1e-6
+"""Face bounding spheres are grown by this fraction of their radius and position (more than the crossing
+test grows the triangles by, :data:`_INSIDE`)."""
+_BLOCK = 32
+"""Rows per block of :func:`_spread`."""
 _SWEEP_ROUNDS = 3
 """Projections of a crossing segment before the particle is stopped at its first crossing."""
 _STOP = 1e-3
@@ -627,6 +632,25 @@ def _bucket_sort(bucket, key, face, first, table):
     return start, keys, items, firsts
 
 
+@njit(cache=True, parallel=True)
+def _entry_spheres(data, items):
+    """Bounding sphere (centre, radius) of the face of every grid entry: (E, 4), in entry order.
+
+    The collision queries test these before touching a face, reading them
+    in the order they scan the entries.
+    """
+    out = np.empty((items.shape[0], 4))
+    for q in prange(items.shape[0]):
+        f = items[q]
+        c = v3.scale(v3.add(v3.add(_corner(data, f, 0), _corner(data, f, 1)), _corner(data, f, 2)), 1.0 / 3.0)
+        radius = 0.0
+        for m in range(3):
+            radius = max(radius, v3.norm(v3.sub(_corner(data, f, m), c)))
+        out[q, 0], out[q, 1], out[q, 2] = c
+        out[q, 3] = radius + _SPHERE_GROWTH * (radius + abs(c[0]) + abs(c[1]) + abs(c[2]))  # rounding
+    return out
+
+
 @njit(cache=True)
 def _bounds(points, data):
     """Lower and upper corners of ``points`` and the mean length of the faces' first edges."""
@@ -657,6 +681,9 @@ def _mesh_grid(points: np.ndarray, faces: np.ndarray, radius: float) -> tuple[tu
 
     Faces are listed in the cells of their bounding boxes grown by the margin
     (:data:`_MARGIN` of a cell), so the grid stays valid while no point moves farther.
+    The tuple is (face data, lower corner, cell size, cells per axis, bucket
+    offsets, cell keys, faces and packed lowest cells of the entries, entry
+    spheres).
     """
     data = _face_data(points, faces)
     lo, hi, edge = _bounds(points, data)
@@ -670,13 +697,14 @@ def _mesh_grid(points: np.ndarray, faces: np.ndarray, radius: float) -> tuple[tu
     table = int(_table_size(int(offset[-1]) // 4))
     bucket, key, face, first = (np.empty(offset[-1], np.int64) for _ in range(4))
     _face_entries(box, offset, dims, table - 1, bucket, key, face, first)
-    return (data, lo, size, dims) + _bucket_sort(bucket, key, face, first, table), margin
+    start, keys, items, firsts = _bucket_sort(bucket, key, face, first, table)
+    return (data, lo, size, dims, start, keys, items, firsts, _entry_spheres(data, items)), margin
 
 
 def _empty_grid() -> tuple:
     """The grid tuple of no mesh (same types as :func:`_mesh_grid`)."""
     return (np.zeros((0, 12)), np.zeros(3), 1.0, np.ones(3, np.int64), np.zeros(65, np.int64),
-            np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64))
+            np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 4)))
 
 
 @njit(cache=True, inline="always")
@@ -798,7 +826,7 @@ def _search(p, r, slack, grid, planes, plane_face, i):
     within PLANE_REACH r + ``slack`` of ``p`` along any axis (then no motion
     inside that box meets a face).
     """
-    data, lo, size, dims, start, keys, items, firsts = grid
+    data, lo, size, dims, start, keys, items, firsts, spheres = grid
     reach = PLANE_REACH * r
     box = reach + slack
     i0, j0, k0, i1, j1, k1 = _cell_box(v3.sub(p, (box, box, box)), v3.add(p, (box, box, box)), lo, size, dims)
@@ -815,10 +843,14 @@ def _search(p, r, slack, grid, planes, plane_face, i):
             for part in range(2):
                 lo_q, hi_q = (a0, a1) if part == 0 else (w0, w1)
                 for q in range(lo_q, hi_q):
-                    if keys[q] < key0 or keys[q] > key1 or not _first_visit(firsts[q], keys[q], base, i0, j, k, j0,
-                                                                             k0):
+                    if keys[q] < key0 or keys[q] > key1:
                         continue
                     clear = False
+                    # a face it is over within reach, or an edge within r, lies within reach of p
+                    dx, dy, dz = p[0] - spheres[q, 0], p[1] - spheres[q, 1], p[2] - spheres[q, 2]
+                    if (dx * dx + dy * dy + dz * dz > (reach + spheres[q, 3]) ** 2
+                            or not _first_visit(firsts[q], keys[q], base, i0, j, k, j0, k0)):
+                        continue
                     f = items[q]
                     n = _corner(data, f, 3)
                     a = _corner(data, f, 0)
@@ -869,9 +901,10 @@ def _plane_push(p, r, planes, taken, plane_face, i):
 @njit(cache=True)
 def _first_crossing(x0, x1, grid):
     """Earliest front-to-back crossing of the segment x0 -> x1 with a face: (parameter t, face or -1)."""
-    data, lo, size, dims, start, keys, items, firsts = grid
+    data, lo, size, dims, start, keys, items, firsts, spheres = grid
     mask = start.shape[0] - 2
     seg = v3.sub(x1, x0)
+    seg2 = v3.dot(seg, seg)
     pieces = max(1, int(np.ceil(v3.norm(seg) / size)))
     margin = 1e-9 * size
     best_t = 2.0
@@ -889,8 +922,14 @@ def _first_crossing(x0, x1, grid):
                 for part in range(2):
                     lo_q, hi_q = (a0, a1) if part == 0 else (b0, b1)
                     for q in range(lo_q, hi_q):
-                        if keys[q] < key0 or keys[q] > key1 or not _first_visit(firsts[q], keys[q], base, i0, j, k,
-                                                                                 j0, k0):
+                        if keys[q] < key0 or keys[q] > key1:
+                            continue
+                        centre = (spheres[q, 0], spheres[q, 1], spheres[q, 2])
+                        e = v3.sub(centre, x0)
+                        t = min(max(v3.dot(e, seg) / seg2, 0.0), 1.0) if seg2 > 0.0 else 0.0
+                        e = v3.sub(e, v3.scale(seg, t))  # from the segment's closest point to the centre
+                        if (v3.dot(e, e) > spheres[q, 3] ** 2
+                                or not _first_visit(firsts[q], keys[q], base, i0, j, k, j0, k0)):
                             continue
                         f = items[q]
                         n = _corner(data, f, 3)
@@ -955,7 +994,7 @@ def _near(p, anchor, slack):
 
 @njit(cache=True, parallel=True)
 def _collide(pos, start, r, grid, friction, boundary, walls, wlo, whi, contact, normal, anchor, slack, clear,
-             planes, n_planes, plane_face):
+             planes, n_planes, plane_face, spread):
     """Mesh collision and walls for every particle, in place.
 
     In order: ``friction`` (at the particles that touched the mesh this
@@ -968,10 +1007,13 @@ def _collide(pos, start, r, grid, friction, boundary, walls, wlo, whi, contact, 
     ``start`` (skipped when the last search listed no face and both ends lie
     within its slack); when ``boundary``, the push-out of ``pos``; the clamp
     into the walls. ``contact`` and ``normal`` receive the face and
-    direction of the latest contact.
+    direction of the latest contact. Particles are visited in the order
+    ``spread`` (:func:`_spread`), so the threads share the particles near
+    the mesh.
     """
     has_mesh = grid[0].shape[0] > 0
-    for i in prange(pos.shape[0]):
+    for t in prange(pos.shape[0]):
+        i = spread[t]
         p = v3.row(pos, i)
         x0 = v3.row(start, i)
         a = v3.row(anchor, i)
@@ -1223,11 +1265,29 @@ def _uniforms(rng, n):
 # --- the fluid -----------------------------------------------------------------------------------------------------
 
 
+def _spread(n: int) -> np.ndarray:
+    """Order (N,) of the rows 0..n-1 in blocks of _BLOCK taken in bit-reversed block order.
+
+    Any contiguous share of it (what one thread of a parallel loop gets)
+    samples the whole range evenly, so work bunched in cell order (the
+    particles near a mesh) is split between the threads.
+    """
+    blocks = -(-n // _BLOCK)
+    bits = max(blocks - 1, 0).bit_length()
+    index = np.arange(blocks)
+    reversed_index = np.zeros(blocks, np.int64)
+    for b in range(bits):
+        reversed_index |= ((index >> b) & 1) << (bits - 1 - b)
+    rows = (np.argsort(reversed_index, kind="stable")[:, None] * _BLOCK + np.arange(_BLOCK)).ravel()
+    return rows[rows < n]
+
+
 class _Work:
     """Particle arrays of one step, in cell order (``order``: index of each row in the public arrays)."""
 
     def __init__(self, n: int, order: np.ndarray) -> None:
         self.order = order
+        self.spread = _spread(n)
         self.x = np.empty((n, 3))
         self.v = np.empty((n, 3))
         self.touched = np.full(n, -1, np.int64)  # face of the latest contact in the step
@@ -1431,7 +1491,8 @@ class ParticleFluid:
         pts, fcs = as_triangle_mesh(points, faces)
         if (self._mesh is not None and pts.shape == self._mesh[0].shape and np.array_equal(fcs, self._mesh[1])
                 and _largest_move(pts, self._mesh[0]) < self._mesh[2]):
-            self._grid = (_face_data(pts, fcs),) + self._grid[1:]  # refit: the faces are still in their cells
+            data = _face_data(pts, fcs)  # refit: the faces are still in their cells
+            self._grid = (data,) + self._grid[1:8] + (_entry_spheres(data, self._grid[6]),)
             return
         self._grid, margin = _mesh_grid(pts, fcs, self.params.radius)
         self._mesh = (pts.copy(), fcs.copy(), margin)
@@ -1508,7 +1569,7 @@ class ParticleFluid:
         normal = np.zeros((n, 3))
         clock = self._lap(times, "solve", clock)
         _collide(ps, work.x, r, self._grid, 0.0, True, self.walls, lo, hi, contact, normal, work.anchor, work.slack,
-                 work.clear, work.planes, work.n_planes, work.plane_face)
+                 work.clear, work.planes, work.n_planes, work.plane_face, work.spread)
         clock = self._lap(times, "collision", clock)
         nbr, count = self._neighbours(ps)
         clock = self._lap(times, "neighbours", clock)
@@ -1522,7 +1583,7 @@ class ParticleFluid:
             ps, buffer = buffer, ps
         clock = self._lap(times, "solve", clock)
         _collide(ps, work.x, r, self._grid, prm.friction, False, self.walls, lo, hi, contact, normal, work.anchor,
-                 work.slack, work.clear, work.planes, work.n_planes, work.plane_face)
+                 work.slack, work.clear, work.planes, work.n_planes, work.plane_face, work.spread)
         clock = self._lap(times, "collision", clock)
         _velocities(ps, work.x, nbr, count, dt, h, self._k6, prm.viscosity / (self._k6 * h**6), contact, normal, buffer,
                     work.v)
