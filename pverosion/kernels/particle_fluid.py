@@ -448,7 +448,8 @@ def _particle_grid(pos, lo, size):
     Returns
     -------
     order : (N,) int64
-        Points in bucket order (cells of a bucket in order of their linear index).
+        Points in bucket order, the cells of a bucket in order of their
+        linear index (each cell's points contiguous, in increasing index).
     start : (T + 1,) int64
         CSR offsets of the T buckets into the sorted points.
     keys : (N,) int64
@@ -457,6 +458,8 @@ def _particle_grid(pos, lo, size):
         Cell coordinates of every sorted point, relative to the lowest cell.
     dims : (3,) int64
         Cells along each axis of the box of occupied cells.
+    runs : (M + 1,) int64
+        Offsets of the M occupied cells into the sorted points.
     """
     n = pos.shape[0]
     cell = np.empty((n, 3), np.int64)
@@ -486,7 +489,23 @@ def _particle_grid(pos, lo, size):
         b = key[i] & mask
         order[fill[b]] = i
         fill[b] += 1
-    return order, start, key[order], cell[order], dims
+    for b in range(table):  # cells sharing a bucket: stable insertion sort by cell (buckets are small)
+        for q in range(start[b] + 1, start[b + 1]):
+            item = order[q]
+            p = q - 1
+            while p >= start[b] and key[order[p]] > key[item]:
+                order[p + 1] = order[p]
+                p -= 1
+            order[p + 1] = item
+    keys = key[order]
+    runs = np.empty(n + 1, np.int64)
+    m = 0
+    for q in range(n):
+        if q == 0 or keys[q] != keys[q - 1]:
+            runs[m] = q
+            m += 1
+    runs[m] = n
+    return order, start, keys, cell[order], dims, runs[:m + 1]
 
 
 @njit(cache=True, inline="always")
@@ -501,33 +520,56 @@ def _row(i0, i1, base, mask, start):
     return k0, k1, start[b0], start[mask + 1], start[0], start[b1 + 1]
 
 
-@njit(cache=True, parallel=True)
-def _neighbour_lists(pos, order, start, keys, cells, dims, h, nbr, count):
+@njit(cache=True, parallel=True, fastmath=_PAIRS)
+def _neighbour_lists(pos, grid, h, nbr, count):
     """Neighbours closer than h of every point (itself excluded), up to nbr.shape[1] each; count gets all.
 
-    ``order``, ``start``, ``keys`` and ``cells`` are the grid of cell edge h
-    (:func:`_particle_grid`); the 27 cells around a point are scanned row by
-    row, appending without branches.
+    ``grid`` is :func:`_particle_grid` of the points with cell edge h. Cell
+    by cell, the points of the 27 cells around it are copied into one
+    contiguous buffer, then every point of the cell keeps the buffer's
+    points within h, in buffer order.
     """
+    order, start, keys, cells, dims, runs = grid
     mask = start.shape[0] - 2
     last = nbr.shape[1] - 1
     h2 = h * h
-    for s in prange(pos.shape[0]):
-        i = order[s]
-        px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
-        c = 0
-        for ck in range(max(cells[s, 2] - 1, 0), min(cells[s, 2] + 2, dims[2])):
-            for cj in range(max(cells[s, 1] - 1, 0), min(cells[s, 1] + 2, dims[1])):
-                k0, k1, a0, a1, w0, w1 = _row(max(cells[s, 0] - 1, 0), min(cells[s, 0] + 1, dims[0] - 1),
-                                              dims[0] * (cj + dims[1] * ck), mask, start)
+    for r in prange(runs.shape[0] - 1):
+        s0, s1 = runs[r], runs[r + 1]
+        i0, i1 = max(cells[s0, 0] - 1, 0), min(cells[s0, 0] + 1, dims[0] - 1)
+        j0, j1 = max(cells[s0, 1] - 1, 0), min(cells[s0, 1] + 1, dims[1] - 1)
+        k0, k1 = max(cells[s0, 2] - 1, 0), min(cells[s0, 2] + 1, dims[2] - 1)
+        total = 0
+        for ck in range(k0, k1 + 1):
+            for cj in range(j0, j1 + 1):
+                _, _, a0, a1, w0, w1 = _row(i0, i1, dims[0] * (cj + dims[1] * ck), mask, start)
+                total += a1 - a0 + w1 - w0
+        bx, by, bz, d2 = np.empty(total), np.empty(total), np.empty(total), np.empty(total)
+        bj = np.empty(total, np.int32)
+        m = 0
+        for ck in range(k0, k1 + 1):
+            for cj in range(j0, j1 + 1):
+                key0, key1, a0, a1, w0, w1 = _row(i0, i1, dims[0] * (cj + dims[1] * ck), mask, start)
                 for part in range(2):
                     lo_q, hi_q = (a0, a1) if part == 0 else (w0, w1)
                     for q in range(lo_q, hi_q):
-                        j = order[q]
-                        dx, dy, dz = px - pos[j, 0], py - pos[j, 1], pz - pos[j, 2]
-                        nbr[i, min(c, last)] = j
-                        c += (dx * dx + dy * dy + dz * dz < h2) & (j != i) & (keys[q] >= k0) & (keys[q] <= k1)
-        count[i] = c
+                        if key0 <= keys[q] <= key1:
+                            j = order[q]
+                            bx[m], by[m], bz[m] = pos[j, 0], pos[j, 1], pos[j, 2]
+                            bj[m] = j
+                            m += 1
+        for s in range(s0, s1):
+            i = order[s]
+            px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
+            for b in range(m):
+                dx, dy, dz = px - bx[b], py - by[b], pz - bz[b]
+                d2[b] = dx * dx + dy * dy + dz * dz
+            n = 0
+            for b in range(m):
+                if d2[b] < h2 and bj[b] != i:
+                    if n <= last:
+                        nbr[i, n] = bj[b]
+                    n += 1
+            count[i] = n
 
 
 @njit(cache=True, parallel=True, fastmath=_PAIRS, error_model="numpy")
@@ -1594,13 +1636,13 @@ class ParticleFluid:
     def _neighbours(self, ps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Neighbour lists (N, capacity) int32 (a reused buffer) and counts of the points ``ps``."""
         h = self.params.kernel_radius
-        order, start, keys, cells, dims = _particle_grid(ps, self.domain[0], h)
+        grid = _particle_grid(ps, self.domain[0], h)
         count = np.empty(len(ps), np.int64)
         while True:
             if self._nbr.shape[0] < len(ps) or self._nbr.shape[1] != self._capacity:
                 self._nbr = np.empty((max(len(ps), self._nbr.shape[0]), self._capacity), np.int32)
             nbr = self._nbr[:len(ps)]
-            _neighbour_lists(ps, order, start, keys, cells, dims, h, nbr, count)
+            _neighbour_lists(ps, grid, h, nbr, count)
             most = int(count.max())
             if most <= self._capacity:
                 return nbr, count
