@@ -124,6 +124,9 @@ _SPHERE_GROWTH = 1e-6
 test grows the triangles by, :data:`_INSIDE`)."""
 _BLOCK = 32
 """Rows per block of :func:`_spread`."""
+_GAP_ROUNDING = 1e-6
+"""The gap of a search (:func:`_search`) is shrunk by this fraction and this many radii (rounding, and the
+crossing test's growth of the triangles)."""
 _SWEEP_ROUNDS = 3
 """Projections of a crossing segment before the particle is stopped at its first crossing."""
 _STOP = 1e-3
@@ -864,16 +867,18 @@ def _search(p, r, slack, grid, planes, plane_face, i):
     """Boundary planes of particle ``i`` at ``p``: faces it is over within PLANE_REACH r, edges and corners
     within r, and the face it is less than r behind (when no face it is over is nearer).
 
-    Returns the number of planes kept and whether no face at all is listed
-    within PLANE_REACH r + ``slack`` of ``p`` along any axis (then no motion
-    inside that box meets a face).
+    Returns the number of planes kept and the gap: a lower bound of the
+    distance from ``p`` to every face listed within PLANE_REACH r + ``slack``
+    of ``p`` along any axis (inf when there is none; faces farther along an
+    axis are not listed). A motion that stays within ``slack`` along every
+    axis and nearer than the gap to ``p`` cannot meet a face.
     """
     data, lo, size, dims, start, keys, items, firsts, spheres = grid
     reach = PLANE_REACH * r
     box = reach + slack
     i0, j0, k0, i1, j1, k1 = _cell_box(v3.sub(p, (box, box, box)), v3.add(p, (box, box, box)), lo, size, dims)
     mask = start.shape[0] - 2
-    clear = True
+    gap = np.inf
     taken = 0
     nearest = r  # the face it is over with the smallest |distance| below r, for the behind rule
     over_face = -1
@@ -887,16 +892,18 @@ def _search(p, r, slack, grid, planes, plane_face, i):
                 for q in range(lo_q, hi_q):
                     if keys[q] < key0 or keys[q] > key1:
                         continue
-                    clear = False
                     # a face it is over within reach, or an edge within r, lies within reach of p
                     dx, dy, dz = p[0] - spheres[q, 0], p[1] - spheres[q, 1], p[2] - spheres[q, 2]
-                    if (dx * dx + dy * dy + dz * dz > (reach + spheres[q, 3]) ** 2
-                            or not _first_visit(firsts[q], keys[q], base, i0, j, k, j0, k0)):
+                    if dx * dx + dy * dy + dz * dz > (reach + spheres[q, 3]) ** 2:
+                        gap = min(gap, reach)  # outside the sphere grown by reach
+                        continue
+                    if not _first_visit(firsts[q], keys[q], base, i0, j, k, j0, k0):
                         continue
                     f = items[q]
                     n = _corner(data, f, 3)
                     a = _corner(data, f, 0)
                     s = v3.dot(n, v3.sub(p, a))
+                    gap = min(gap, abs(s))  # the distance to a face's plane bounds the distance to the face
                     if (s <= -r or s >= reach or (n[0] == 0.0 and n[1] == 0.0 and n[2] == 0.0)
                             or (s >= 0.0 and _covered(planes, plane_face, i, taken, data, f, n, s))):
                         continue
@@ -919,7 +926,7 @@ def _search(p, r, slack, grid, planes, plane_face, i):
         n = _corner(data, over_face, 3)
         taken = _keep_plane(planes, plane_face, i, taken, data, over_face, n, v3.dot(n, _corner(data, over_face, 0)),
                             0.0)
-    return taken, clear
+    return taken, gap * (1.0 - _GAP_ROUNDING) - _GAP_ROUNDING * r
 
 
 @njit(cache=True)
@@ -1035,7 +1042,7 @@ def _near(p, anchor, slack):
 
 
 @njit(cache=True, parallel=True)
-def _collide(pos, start, r, grid, friction, boundary, walls, wlo, whi, contact, normal, anchor, slack, clear,
+def _collide(pos, start, r, grid, friction, boundary, walls, wlo, whi, contact, normal, anchor, slack, gap,
              planes, n_planes, plane_face, spread):
     """Mesh collision and walls for every particle, in place.
 
@@ -1046,8 +1053,8 @@ def _collide(pos, start, r, grid, friction, boundary, walls, wlo, whi, contact, 
     ``max(_REUSE r, 1.5 |pos - start|)``, enough for the next substep too)
     and the push-out of ``start`` itself, moving ``pos`` along (a mesh that
     moved over a particle gives it no velocity); the swept test from
-    ``start`` (skipped when the last search listed no face and both ends lie
-    within its slack); when ``boundary``, the push-out of ``pos``; the clamp
+    ``start`` (skipped when both ends lie within the slack of the last
+    search and nearer to its anchor than its ``gap``); when ``boundary``, the push-out of ``pos``; the clamp
     into the walls. ``contact`` and ``normal`` receive the face and
     direction of the latest contact. Particles are visited in the order
     ``spread`` (:func:`_spread`), so the threads share the particles near
@@ -1069,7 +1076,7 @@ def _collide(pos, start, r, grid, friction, boundary, walls, wlo, whi, contact, 
                 slack[i] = max(_REUSE * r, 1.5 * max(abs(move[0]), abs(move[1]), abs(move[2])))
                 a = p
                 v3.store(anchor, i, a)
-                n_planes[i], clear[i] = _search(p, r, slack[i], grid, planes, plane_face, i)
+                n_planes[i], gap[i] = _search(p, r, slack[i], grid, planes, plane_face, i)
             y, f, n = _plane_push(x0, r, planes, n_planes[i], plane_face, i)
             if f >= 0:
                 p = v3.add(p, v3.sub(y, x0))
@@ -1077,7 +1084,8 @@ def _collide(pos, start, r, grid, friction, boundary, walls, wlo, whi, contact, 
                 v3.store(start, i, y)
                 contact[i] = f
                 v3.store(normal, i, n)
-        if has_mesh and not (clear[i] and _near(x0, a, slack[i]) and _near(p, a, slack[i])):
+        if has_mesh and not (_near(x0, a, slack[i]) and _near(p, a, slack[i]) and v3.norm(v3.sub(x0, a)) < gap[i]
+                             and v3.norm(v3.sub(p, a)) < gap[i]):
             p, f, n = _sweep(x0, p, r, grid)
             if f >= 0:
                 contact[i] = f
@@ -1335,7 +1343,7 @@ class _Work:
         self.touched = np.full(n, -1, np.int64)  # face of the latest contact in the step
         self.anchor = np.full((n, 3), np.nan)  # where the mesh was last searched for boundary planes
         self.slack = np.zeros(n)  # how far from the anchor that search holds
-        self.clear = np.zeros(n, np.bool_)
+        self.gap = np.zeros(n)  # no face nearer to the anchor (see _search)
         self.planes = np.empty((n, MAX_PLANES, 5))
         self.n_planes = np.zeros(n, np.int64)
         self.plane_face = np.empty((n, MAX_PLANES), np.int64)
@@ -1611,7 +1619,7 @@ class ParticleFluid:
         normal = np.zeros((n, 3))
         clock = self._lap(times, "solve", clock)
         _collide(ps, work.x, r, self._grid, 0.0, True, self.walls, lo, hi, contact, normal, work.anchor, work.slack,
-                 work.clear, work.planes, work.n_planes, work.plane_face, work.spread)
+                 work.gap, work.planes, work.n_planes, work.plane_face, work.spread)
         clock = self._lap(times, "collision", clock)
         nbr, count = self._neighbours(ps)
         clock = self._lap(times, "neighbours", clock)
@@ -1625,7 +1633,7 @@ class ParticleFluid:
             ps, buffer = buffer, ps
         clock = self._lap(times, "solve", clock)
         _collide(ps, work.x, r, self._grid, prm.friction, False, self.walls, lo, hi, contact, normal, work.anchor,
-                 work.slack, work.clear, work.planes, work.n_planes, work.plane_face, work.spread)
+                 work.slack, work.gap, work.planes, work.n_planes, work.plane_face, work.spread)
         clock = self._lap(times, "collision", clock)
         _velocities(ps, work.x, nbr, count, dt, h, self._k6, prm.viscosity / (self._k6 * h**6), contact, normal, buffer,
                     work.v)
