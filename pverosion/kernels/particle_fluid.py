@@ -45,16 +45,18 @@ Method
 - **Mesh collision.** The fluid is on the front side of every face (the
   right-hand normal points into the fluid). A particle ends ``r`` in front
   of its boundary planes. The boundary planes are searched at the
-  predicted position with some slack, and reused within the step while
-  the particle stays in it. The substep's start is pushed out first,
+  predicted position with some slack, and reused while the particle stays
+  in it, into the next steps too (the slack shrinks by how far the mesh
+  moved, and the planes follow their faces). The substep's start is pushed out first,
   carrying the predicted position along, so a mesh that moved over a
   particle gives it no velocity. The segment from the start to the
   predicted and to the final position is tested against the triangles
-  (front-to-back crossings): a crossing particle is put back ``r`` in front
+  (front-to-back crossings), unless both ends stay nearer to where the
+  mesh was searched than every face it listed: a crossing particle is put back ``r`` in front
   of the first face it crossed, keeping its tangential motion, and stopped
   just before the crossing if that still crosses a face. So particles never
   pass through a closed surface, however fast. Faces are found through a
-  uniform grid of cell size ``max(4r, mean edge)``, each face
+  uniform grid of cell size ``max(2r, mean edge)``, each face
   listed in the cells of its bounding box grown by a margin; while the
   faces stay the same and no point has moved farther than the margin,
   :meth:`ParticleFluid.set_mesh` only refreshes the face coordinates.
@@ -107,7 +109,7 @@ _PAIRS = {"reassoc", "contract"}
 """Floating-point freedom of the particle-pair loops: their sums vectorise (same order for any thread count)."""
 _LIMIT = 1 << 19
 """Particle grid cell coordinates are clamped to +-_LIMIT (far-away points only share cells)."""
-_MESH_CELL = 4.0
+_MESH_CELL = 2.0
 """Least edge of the mesh grid's cells, in radii (larger cells list more faces, smaller ones list each face in
 more cells)."""
 _MESH_CELLS = 4096
@@ -116,6 +118,9 @@ _REUSE = 0.5
 """Least slack, in radii, of a search for boundary planes: within a step, a particle whose substep starts and
 ends within the slack of where the mesh was last searched (along each axis) reuses that search, which covered
 PLANE_REACH r plus the slack."""
+_CARRY = (PLANE_REACH - 1.0) / math.sqrt(3.0)
+"""Slack, in radii, up to which a search carries over to the next steps: within it (along each axis), every
+face within r of the particle is within PLANE_REACH r of the anchor, so its planes were found."""
 _MARGIN = 0.1
 """Faces are listed in the cells of their boxes grown by this fraction of a cell: set_mesh refits the grid
 instead of rebuilding it while the faces stay the same and no point has moved farther since the build."""
@@ -424,6 +429,8 @@ class FluidState:
     drained: int
     drained_sediment: float
     steps: int
+    last: object  # the last step's work (its searches carry over)
+    rows: np.ndarray
 
 
 # --- grids -----------------------------------------------------------------------------------------------------
@@ -814,8 +821,9 @@ def _nearer(dist, f, other_dist, other_face):
 
 
 @njit(cache=True)
-def _keep_plane(planes, plane_face, i, taken, data, f, u, offset, dist):
-    """Offer face ``f`` (plane ``u . x = offset`` at ``dist``) as a boundary plane of particle ``i``.
+def _keep_plane(planes, plane_face, i, taken, data, f, u, offset, dist, edge):
+    """Offer face ``f`` (plane ``u . x = offset`` at ``dist``; ``edge``: of an edge or corner) as a boundary plane
+    of particle ``i``.
 
     A face turned less than 30 degrees from a plane already kept replaces it
     when nearer; otherwise it takes a free slot, or the farthest one's when
@@ -844,6 +852,7 @@ def _keep_plane(planes, plane_face, i, taken, data, f, u, offset, dist):
     planes[i, slot, 0], planes[i, slot, 1], planes[i, slot, 2] = u
     planes[i, slot, 3] = offset
     planes[i, slot, 4] = dist
+    planes[i, slot, 5] = 1.0 if edge else 0.0
     plane_face[i, slot] = f
     return taken
 
@@ -914,18 +923,18 @@ def _search(p, r, slack, grid, planes, plane_face, i):
                             over_face = f
                             over_s = s
                         if s >= 0.0:
-                            taken = _keep_plane(planes, plane_face, i, taken, data, f, n, v3.dot(n, a), s)
+                            taken = _keep_plane(planes, plane_face, i, taken, data, f, n, v3.dot(n, a), s, False)
                     elif 0.0 <= s < r:
                         e = _closest_on_boundary(p, a, b, c)
                         d = v3.sub(p, e)
                         dist = v3.norm(d)
                         if 0.0 < dist < r:
                             u = v3.scale(d, 1.0 / dist)
-                            taken = _keep_plane(planes, plane_face, i, taken, data, f, u, v3.dot(u, e), dist)
+                            taken = _keep_plane(planes, plane_face, i, taken, data, f, u, v3.dot(u, e), dist, True)
     if over_face >= 0 and over_s < 0.0:  # behind the nearest face it is over: to its front
         n = _corner(data, over_face, 3)
         taken = _keep_plane(planes, plane_face, i, taken, data, over_face, n, v3.dot(n, _corner(data, over_face, 0)),
-                            0.0)
+                            0.0, False)
     return taken, gap * (1.0 - _GAP_ROUNDING) - _GAP_ROUNDING * r
 
 
@@ -945,6 +954,56 @@ def _plane_push(p, r, planes, taken, plane_face, i):
             contact = plane_face[i, k]
             push = u
     return p, contact, push
+
+
+@njit(cache=True, parallel=True)
+def _refresh(data, drift, anchor, slack, gap, planes, n_planes, plane_face):
+    """Carry the searches over a mesh move of at most ``drift`` along any axis, in place.
+
+    Every slack shrinks by ``drift`` (the faces may have come that much
+    nearer; a negative slack forces a new search), every gap by sqrt(3)
+    ``drift`` (the same, as a distance), and every boundary plane
+    is recomputed from its face's new position: the face's plane, or for an
+    edge or corner the direction from its closest point to the anchor.
+    """
+    for i in prange(anchor.shape[0]):
+        slack[i] -= drift
+        gap[i] -= math.sqrt(3.0) * drift
+        for k in range(n_planes[i]):
+            f = plane_face[i, k]
+            a = _corner(data, f, 0)
+            u = _corner(data, f, 3)
+            offset = v3.dot(u, a)
+            if planes[i, k, 5] > 0.0:
+                e = _closest_on_boundary(v3.row(anchor, i), a, _corner(data, f, 1), _corner(data, f, 2))
+                d = v3.sub(v3.row(anchor, i), e)
+                dist = v3.norm(d)
+                if dist > 0.0:
+                    u = v3.scale(d, 1.0 / dist)
+                    offset = v3.dot(u, e)
+            planes[i, k, 0], planes[i, k, 1], planes[i, k, 2] = u
+            planes[i, k, 3] = offset
+
+
+@njit(cache=True, parallel=True)
+def _carry(rows, anchor, slack, gap, planes, n_planes, plane_face, to_anchor, to_slack, to_gap, to_planes,
+           to_n_planes, to_plane_face):
+    """Row ``s`` of the ``to_`` arrays = row ``rows[s]`` of the others (-1: never searched)."""
+    for s in prange(rows.shape[0]):
+        q = rows[s]
+        if q < 0:
+            to_anchor[s, 0] = np.nan
+            to_n_planes[s] = 0
+            continue
+        for a in range(3):
+            to_anchor[s, a] = anchor[q, a]
+        to_slack[s] = slack[q]
+        to_gap[s] = gap[q]
+        to_n_planes[s] = n_planes[q]
+        for k in range(n_planes[q]):
+            to_plane_face[s, k] = plane_face[q, k]
+            for c in range(planes.shape[2]):
+                to_planes[s, k, c] = planes[q, k, c]
 
 
 @njit(cache=True)
@@ -1335,18 +1394,37 @@ def _spread(n: int) -> np.ndarray:
 class _Work:
     """Particle arrays of one step, in cell order (``order``: index of each row in the public arrays)."""
 
-    def __init__(self, n: int, order: np.ndarray) -> None:
+    def __init__(self, n: int, order: np.ndarray, carried: _Work | None = None, rows: np.ndarray | None = None) -> None:
+        """``carried``: the previous step's work, whose searches move along; ``rows[s]``: row of particle
+        ``order[s]`` there (-1: none)."""
         self.order = order
         self.spread = _spread(n)
         self.x = np.empty((n, 3))
         self.v = np.empty((n, 3))
         self.touched = np.full(n, -1, np.int64)  # face of the latest contact in the step
         self.anchor = np.full((n, 3), np.nan)  # where the mesh was last searched for boundary planes
-        self.slack = np.zeros(n)  # how far from the anchor that search holds
+        self.slack = np.zeros(n)  # how far from the anchor, along each axis, that search holds
         self.gap = np.zeros(n)  # no face nearer to the anchor (see _search)
-        self.planes = np.empty((n, MAX_PLANES, 5))
+        self.planes = np.empty((n, MAX_PLANES, 6))  # unit normal, offset, distance, 1 for an edge or corner
         self.n_planes = np.zeros(n, np.int64)
         self.plane_face = np.empty((n, MAX_PLANES), np.int64)
+        if carried is not None:
+            _carry(rows, *carried.searches(), *self.searches())
+
+    def searches(self) -> tuple:
+        """The search arrays, in the order the kernels take them."""
+        return self.anchor, self.slack, self.gap, self.planes, self.n_planes, self.plane_face
+
+    def forget(self) -> None:
+        """Drop every search (the faces changed or went)."""
+        self.anchor[:] = np.nan
+        self.n_planes[:] = 0
+
+    def copy(self) -> _Work:
+        out = _Work(0, self.order)
+        for name, value in vars(self).items():
+            setattr(out, name, value.copy())
+        return out
 
 
 class ParticleFluid:
@@ -1441,6 +1519,9 @@ class ParticleFluid:
         self._nbr = np.empty((0, self._capacity), np.int32)
         self._grid = _empty_grid()
         self._mesh: tuple | None = None  # points, faces and margin of the last grid build
+        self._points: np.ndarray | None = None  # points of the last set_mesh
+        self._last: _Work | None = None  # the last step's work, with its searches
+        self._rows = np.zeros(0, np.int64)  # row of every particle in it (-1: none)
         self.positions = np.zeros((0, 3))
         self.velocities = np.zeros((0, 3))
         self.ids = np.zeros(0, np.int64)
@@ -1524,6 +1605,7 @@ class ParticleFluid:
         self.sediment = np.concatenate((self.sediment, np.zeros(m)))
         self.contact_face = np.concatenate((self.contact_face, np.full(m, -1, np.int64)))
         self.contact_distance = np.concatenate((self.contact_distance, np.full(m, np.inf)))
+        self._rows = np.concatenate((self._rows, np.full(m, -1, np.int64)))
         self._next_id += m
 
     def set_mesh(self, points, faces) -> None:
@@ -1536,16 +1618,25 @@ class ParticleFluid:
         """
         if points is None or faces is None or np.size(faces) == 0:
             self._grid = _empty_grid()
-            self._mesh = None
+            self._mesh = self._points = None
+            if self._last is not None:
+                self._last.forget()
             return
         pts, fcs = as_triangle_mesh(points, faces)
         if (self._mesh is not None and pts.shape == self._mesh[0].shape and np.array_equal(fcs, self._mesh[1])
                 and _largest_move(pts, self._mesh[0]) < self._mesh[2]):
             data = _face_data(pts, fcs)  # refit: the faces are still in their cells
             self._grid = (data,) + self._grid[1:8] + (_entry_spheres(data, self._grid[6]),)
-            return
-        self._grid, margin = _mesh_grid(pts, fcs, self.params.radius)
-        self._mesh = (pts.copy(), fcs.copy(), margin)
+            if self._last is not None:
+                last = self._last
+                _refresh(data, _largest_move(pts, self._points), last.anchor, last.slack, last.gap, last.planes,
+                         last.n_planes, last.plane_face)
+        else:
+            self._grid, margin = _mesh_grid(pts, fcs, self.params.radius)
+            self._mesh = (pts.copy(), fcs.copy(), margin)
+            if self._last is not None:
+                self._last.forget()  # the faces are numbered anew
+        self._points = pts.copy()
 
     # -- stepping ------------------------------------------------------------------------------------------------
 
@@ -1560,13 +1651,19 @@ class ParticleFluid:
         clock = self._lap(times, "emit_drain", clock)
         if n:
             # the particles in cell order for the whole step, for locality
-            work = _Work(n, _particle_grid(self.positions, self.domain[0], self.params.kernel_radius)[0])
+            order = _particle_grid(self.positions, self.domain[0], self.params.kernel_radius)[0]
+            work = _Work(n, order, self._last, self._rows[order])
             _gather(self.positions, self.velocities, work.order, work.x, work.v)
             self._lap(times, "neighbours", clock)
             for _ in range(self.params.substeps):
                 self._substep(work, self.dt / self.params.substeps, times)
             clock = time.perf_counter()
             _scatter(work.order, work.x, work.v, work.touched, self.positions, self.velocities, self.contact_face)
+            # the searches go on to the next step as far as their planes cover every face within r
+            np.minimum(work.slack, _CARRY * self.params.radius, out=work.slack)
+            self._last = work
+            self._rows = np.empty(n, np.int64)
+            self._rows[work.order] = np.arange(n)
             clock = self._lap(times, "solve", clock)
         self._drain()
         clock = self._lap(times, "emit_drain", clock)
@@ -1671,7 +1768,7 @@ class ParticleFluid:
         keep = ~gone
         self.drained += int(np.count_nonzero(gone))
         self.drained_sediment += float(self.sediment[gone].sum())
-        for name in ("positions", "velocities", "ids", "sediment", "contact_face"):
+        for name in ("positions", "velocities", "ids", "sediment", "contact_face", "_rows"):
             setattr(self, name, getattr(self, name)[keep])
 
     def density(self) -> np.ndarray:
@@ -1694,7 +1791,7 @@ class ParticleFluid:
         return FluidState(self.positions.copy(), self.velocities.copy(), self.ids.copy(), self.sediment.copy(),
                           self.contact_face.copy(), self.contact_distance.copy(), self._advance.copy(),
                           self._rng.copy(), self._next_id, self.emitted, self.drained, self.drained_sediment,
-                          self.steps)
+                          self.steps, None if self._last is None else self._last.copy(), self._rows.copy())
 
     def restore(self, state: FluidState) -> None:
         """Return to a snapshot taken by :meth:`state` (of this fluid); the snapshot stays usable."""
@@ -1715,3 +1812,5 @@ class ParticleFluid:
         self.drained = state.drained
         self.drained_sediment = state.drained_sediment
         self.steps = state.steps
+        self._last = None if state.last is None else state.last.copy()
+        self._rows = state.rows.copy()
