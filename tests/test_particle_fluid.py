@@ -366,3 +366,29 @@ def test_bad_input_is_named():
     fluid.sediment = np.zeros(2)
     with pytest.raises(ValueError, match="sediment must be an array of shape"):
         fluid.step()
+
+
+def test_density_matches_a_kd_tree_sum_for_clustered_and_scattered_points():
+    """The neighbour lists behind density() find exactly the pairs closer than h: a dense cluster (more
+    neighbours than the first list capacity) and points scattered far apart (cells sharing hash buckets)."""
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(7)
+    params = FluidParameters(radius=R)
+    h = params.kernel_radius
+    cluster = rng.uniform(0.0, 3.0 * h, size=(1500, 3))
+    scattered = rng.uniform(-200.0 * h, 200.0 * h, size=(3000, 3))
+    near_scattered = scattered[:500] + rng.normal(scale=0.5 * h, size=(500, 3))
+    points = np.concatenate((cluster, scattered, near_scattered))
+    fluid = ParticleFluid(params, domain=(points.min(axis=0) - 1.0, points.max(axis=0) + 1.0))
+    fluid.add_particles(points)
+    k6 = 315.0 / (64.0 * math.pi * h**9)
+    expected = np.full(len(points), k6 * h**6)
+    for i, j in cKDTree(points).query_pairs(h, output_type="ndarray"):
+        r2 = float(np.sum((points[i] - points[j]) ** 2))
+        if r2 < h * h:
+            w = k6 * (h * h - r2) ** 3
+            expected[i] += w
+            expected[j] += w
+    assert max(len(n) for n in cKDTree(points).query_ball_point(cluster, h)) > 65  # beyond the first capacity
+    np.testing.assert_allclose(fluid.density(), expected / params.rest_density, rtol=1e-12, atol=0.0)

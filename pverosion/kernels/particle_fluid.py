@@ -429,7 +429,7 @@ class FluidState:
     drained: int
     drained_sediment: float
     steps: int
-    last: object  # the last step's work (its searches carry over)
+    last: _Work | None  # the last step's work (its searches carry over)
     rows: np.ndarray
 
 
