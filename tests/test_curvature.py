@@ -6,7 +6,7 @@ from conftest import height_field, icosphere
 import pverosion
 from pverosion.examples import load_cylinder, load_torus
 from pverosion.kernels import InvalidMeshError, principal_curvatures
-from pverosion.kernels.curvature import CurvatureOperator
+from pverosion.kernels.curvature import CurvatureOperator, CurvatureTracker
 
 
 def test_sphere_mean_and_gaussian_curvature():
@@ -132,3 +132,36 @@ def test_result_is_independent_of_thread_count():
     finally:
         numba.set_num_threads(before)
     assert np.array_equal(one.k1, many.k1) and np.array_equal(one.direction1, many.direction1)
+
+
+def _fields(c):
+    return (c.k1, c.k2, c.direction1, c.direction2, c.normals, c.point_areas)
+
+
+def test_tracker_updates_equal_fresh_evaluations_and_the_operator():
+    s = icosphere(1.0, 4)
+    faces = s.regular_faces
+    rng = np.random.default_rng(5)
+    points = np.array(s.points, dtype=float)
+    tracker = CurvatureTracker(faces, s.n_points)
+    first = tracker(points)
+    assert np.allclose(first.mean, 1.0, rtol=1e-3)
+    for step in range(4):
+        # a few points move (or, at the last step, all go back to the start)
+        if step < 3:
+            some = rng.choice(s.n_points, 25, replace=False)
+            points[some] += 0.02 * rng.standard_normal((25, 3))
+        else:
+            points = np.array(s.points, dtype=float)
+        update = tracker(points)
+        fresh = CurvatureTracker(faces, s.n_points)(points)
+        for a, b in zip(_fields(update), _fields(fresh)):
+            assert np.array_equal(a, b)
+        reference = CurvatureOperator(faces, s.n_points)(points)
+        # (the principal directions of near-umbilic points amplify rounding: not compared)
+        for name in ("k1", "k2", "normals", "point_areas"):
+            a, b = getattr(update, name), getattr(reference, name)
+            assert np.allclose(a, b, rtol=0.0, atol=1e-12 * max(1.0, np.abs(b).max()))
+    assert not update.k1.flags.writeable
+    with pytest.raises(InvalidMeshError, match="shape"):
+        tracker(points[:-1])

@@ -49,6 +49,25 @@ def face_normals(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.
     return normals, 0.5 * double_area
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def face_normal_terms(points, faces, f, max_weights):
+    """Contribution of face ``f`` to the normals of its corners: (ok, n, w0, w1, w2).
+
+    ``n`` is the unnormalised face normal (twice the area); each corner adds
+    ``w_k n``, with weights 1 (area weighting) or Max's ``1 / (|e_a|^2 |e_b|^2)``
+    of the corner's two edges; ``ok`` is False for a face Max's weights skip.
+    """
+    p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
+    a, b, e = v3.sub(p1, p0), v3.sub(p2, p1), v3.sub(p0, p2)
+    n = v3.cross(a, b)
+    if not max_weights:
+        return True, n, 1.0, 1.0, 1.0
+    la, lb, le = v3.dot(a, a), v3.dot(b, b), v3.dot(e, e)
+    if la * lb * le == 0.0:
+        return False, n, 0.0, 0.0, 0.0
+    return True, n, 1.0 / (la * le), 1.0 / (la * lb), 1.0 / (lb * le)
+
+
 @njit(cache=True, error_model="numpy", parallel=True)
 def _scatter_normals(points, faces, max_weights):
     n_vertices = points.shape[0]
@@ -56,16 +75,10 @@ def _scatter_normals(points, faces, max_weights):
     for c in prange(CHUNKS):
         start, stop = chunk_range(faces.shape[0], c)
         for f in range(start, stop):
+            ok, n, w0, w1, w2 = face_normal_terms(points, faces, f, max_weights)
+            if not ok:
+                continue
             i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-            p0, p1, p2 = v3.row(points, i0), v3.row(points, i1), v3.row(points, i2)
-            a, b, e = v3.sub(p1, p0), v3.sub(p2, p1), v3.sub(p0, p2)
-            n = v3.cross(a, b)
-            w0 = w1 = w2 = 1.0
-            if max_weights:
-                la, lb, le = v3.dot(a, a), v3.dot(b, b), v3.dot(e, e)
-                if la * lb * le == 0.0:
-                    continue
-                w0, w1, w2 = 1.0 / (la * le), 1.0 / (la * lb), 1.0 / (lb * le)
             for d in range(3):
                 acc[c, i0, d] += w0 * n[d]
                 acc[c, i1, d] += w1 * n[d]

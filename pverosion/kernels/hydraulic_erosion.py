@@ -43,11 +43,13 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels.curvature import CurvatureTracker
 from pverosion.kernels.geometry import average_edge_length
 from pverosion.kernels.laplacian import laplacian_vectors
 from pverosion.kernels.mesh_evolution import GuardedMeshSolver, volume_area
@@ -446,6 +448,8 @@ class HydraulicSolver(GuardedMeshSolver):
         lo, hi = lo - pad, hi + pad
         hi[2] += 20.0 * radius
         return lo, hi
+
+    _curvature_estimator: ClassVar[type] = CurvatureTracker  # the water moves a small part of the mesh per iteration
 
     def _build_topology(self) -> None:
         super()._build_topology()

@@ -125,6 +125,8 @@ class GuardedMeshSolver:
     STAT_NAMES: ClassVar[tuple[str, ...]] = ()
     """Names of the per-step statistics (one row per step, step 0 first); rows come from :meth:`_row`."""
     PROGRESS_LABEL: ClassVar[str] = "steps"
+    _curvature_estimator: ClassVar[type] = CurvatureOperator
+    """Curvature of the current points, built per connectivity (:class:`CurvatureTracker` where few points move)."""
 
     def __init__(
         self,
@@ -212,7 +214,7 @@ class GuardedMeshSolver:
     def _build_topology(self) -> None:
         """Everything that depends on the faces only; rebuilt after edge collapses."""
         n = len(self.points)
-        self._curvature = CurvatureOperator(self.faces, n)
+        self._curvature = self._curvature_estimator(self.faces, n)
         topo = edge_topology(self.faces, n)
         self._ring = one_ring(self.faces, n, edges=topo.edges)
         self._edges = topo.edges

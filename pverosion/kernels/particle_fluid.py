@@ -129,6 +129,8 @@ _SPHERE_GROWTH = 1e-6
 test grows the triangles by, :data:`_INSIDE`)."""
 _BLOCK = 32
 """Rows per block of :func:`_spread`."""
+_CELL_CHUNK = 64
+"""Occupied cells per task of :func:`_neighbour_lists`."""
 _GAP_ROUNDING = 1e-6
 """The gap of a search (:func:`_search`) is shrunk by this fraction and this many radii (rounding, and the
 crossing test's growth of the triangles)."""
@@ -530,56 +532,85 @@ def _row(i0, i1, base, mask, start):
     return k0, k1, start[b0], start[mask + 1], start[0], start[b1 + 1]
 
 
-@njit(cache=True, parallel=True, fastmath=_PAIRS)
+@njit(cache=True, inline="always")
+def _around(cells, dims, s):
+    """Cell ranges (i0, i1, j0, j1, k0, k1) of the 27 cells around the cell of sorted point ``s``."""
+    return (max(cells[s, 0] - 1, 0), min(cells[s, 0] + 1, dims[0] - 1), max(cells[s, 1] - 1, 0),
+            min(cells[s, 1] + 1, dims[1] - 1), max(cells[s, 2] - 1, 0), min(cells[s, 2] + 1, dims[2] - 1))
+
+
+@njit(cache=True)
+def _candidates(start, cells, dims, s, mask):
+    """Upper bound of the points in the 27 cells around the cell of sorted point ``s`` (whole buckets)."""
+    i0, i1, j0, j1, k0, k1 = _around(cells, dims, s)
+    total = 0
+    for ck in range(k0, k1 + 1):
+        for cj in range(j0, j1 + 1):
+            _, _, a0, a1, w0, w1 = _row(i0, i1, dims[0] * (cj + dims[1] * ck), mask, start)
+            total += a1 - a0 + w1 - w0
+    return total
+
+
+@njit(cache=True, fastmath=_PAIRS)
+def _cell_lists(pos, grid, s0, s1, h2, nbr, count, bx, by, bz, d2, bj, kept):
+    """Neighbour lists of the points of one cell (sorted points s0..s1), with buffers of :func:`_candidates` size.
+
+    The points of the 27 cells around are copied into the buffers; every
+    point of the cell keeps those within h, in buffer order. The compaction
+    is branch-free: in a moving fluid, "within h" is a coin toss for the
+    branch predictor.
+    """
+    order, start, keys, cells, dims, _ = grid
+    mask = start.shape[0] - 2
+    last = nbr.shape[1] - 1
+    i0, i1, j0, j1, k0, k1 = _around(cells, dims, s0)
+    m = 0
+    for ck in range(k0, k1 + 1):
+        for cj in range(j0, j1 + 1):
+            key0, key1, a0, a1, w0, w1 = _row(i0, i1, dims[0] * (cj + dims[1] * ck), mask, start)
+            for part in range(2):
+                lo_q, hi_q = (a0, a1) if part == 0 else (w0, w1)
+                for q in range(lo_q, hi_q):
+                    if key0 <= keys[q] <= key1:
+                        j = order[q]
+                        bx[m], by[m], bz[m] = pos[j, 0], pos[j, 1], pos[j, 2]
+                        bj[m] = j
+                        m += 1
+    for s in range(s0, s1):
+        i = order[s]
+        px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
+        for b in range(m):
+            dx, dy, dz = px - bx[b], py - by[b], pz - bz[b]
+            d2[b] = dx * dx + dy * dy + dz * dz
+        n = 0
+        for b in range(m):
+            kept[n] = bj[b]
+            n += (d2[b] < h2) & (bj[b] != i)
+        for q in range(min(n, last + 1)):
+            nbr[i, q] = kept[q]
+        count[i] = n
+
+
+@njit(cache=True, parallel=True)
 def _neighbour_lists(pos, grid, h, nbr, count):
     """Neighbours closer than h of every point (itself excluded), up to nbr.shape[1] each; count gets all.
 
-    ``grid`` is :func:`_particle_grid` of the points with cell edge h. Cell
-    by cell, the points of the 27 cells around it are copied into one
-    contiguous buffer, then every point of the cell keeps the buffer's
-    points within h, in buffer order.
+    ``grid`` is :func:`_particle_grid` of the points with cell edge h. The
+    occupied cells go in chunks of :data:`_CELL_CHUNK` to the threads, each
+    chunk with buffers as large as its largest cell needs.
     """
-    order, start, keys, cells, dims, runs = grid
+    start, cells, dims, runs = grid[1], grid[3], grid[4], grid[5]
     mask = start.shape[0] - 2
-    last = nbr.shape[1] - 1
-    h2 = h * h
-    for r in prange(runs.shape[0] - 1):
-        s0, s1 = runs[r], runs[r + 1]
-        i0, i1 = max(cells[s0, 0] - 1, 0), min(cells[s0, 0] + 1, dims[0] - 1)
-        j0, j1 = max(cells[s0, 1] - 1, 0), min(cells[s0, 1] + 1, dims[1] - 1)
-        k0, k1 = max(cells[s0, 2] - 1, 0), min(cells[s0, 2] + 1, dims[2] - 1)
-        total = 0
-        for ck in range(k0, k1 + 1):
-            for cj in range(j0, j1 + 1):
-                _, _, a0, a1, w0, w1 = _row(i0, i1, dims[0] * (cj + dims[1] * ck), mask, start)
-                total += a1 - a0 + w1 - w0
-        bx, by, bz, d2 = np.empty(total), np.empty(total), np.empty(total), np.empty(total)
-        bj = np.empty(total, np.int32)
-        m = 0
-        for ck in range(k0, k1 + 1):
-            for cj in range(j0, j1 + 1):
-                key0, key1, a0, a1, w0, w1 = _row(i0, i1, dims[0] * (cj + dims[1] * ck), mask, start)
-                for part in range(2):
-                    lo_q, hi_q = (a0, a1) if part == 0 else (w0, w1)
-                    for q in range(lo_q, hi_q):
-                        if key0 <= keys[q] <= key1:
-                            j = order[q]
-                            bx[m], by[m], bz[m] = pos[j, 0], pos[j, 1], pos[j, 2]
-                            bj[m] = j
-                            m += 1
-        for s in range(s0, s1):
-            i = order[s]
-            px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
-            for b in range(m):
-                dx, dy, dz = px - bx[b], py - by[b], pz - bz[b]
-                d2[b] = dx * dx + dy * dy + dz * dz
-            n = 0
-            for b in range(m):
-                if d2[b] < h2 and bj[b] != i:
-                    if n <= last:
-                        nbr[i, n] = bj[b]
-                    n += 1
-            count[i] = n
+    n_cells = runs.shape[0] - 1
+    for c in prange((n_cells + _CELL_CHUNK - 1) // _CELL_CHUNK):
+        r0, r1 = c * _CELL_CHUNK, min((c + 1) * _CELL_CHUNK, n_cells)
+        size = 0
+        for r in range(r0, r1):
+            size = max(size, _candidates(start, cells, dims, runs[r], mask))
+        bx, by, bz, d2 = np.empty(size), np.empty(size), np.empty(size), np.empty(size)
+        bj, kept = np.empty(size, np.int32), np.empty(size, np.int32)
+        for r in range(r0, r1):
+            _cell_lists(pos, grid, runs[r], runs[r + 1], h * h, nbr, count, bx, by, bz, d2, bj, kept)
 
 
 @njit(cache=True, parallel=True, fastmath=_PAIRS, error_model="numpy")
@@ -597,20 +628,26 @@ def _density_sum(pos, nbr, count, h, k6, inv_rho0, out):
         out[i] = rho * inv_rho0
 
 
+@njit(cache=True, inline="always")
+def _store_face(points, faces, f, data):
+    """Row ``f`` of :func:`_face_data`."""
+    a, b, c = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
+    n = v3.cross(v3.sub(b, a), v3.sub(c, a))
+    length = v3.norm(n)
+    n = v3.scale(n, 1.0 / length) if length > 0.0 else (0.0, 0.0, 0.0)
+    for m in range(3):
+        data[f, m] = a[m]
+        data[f, 3 + m] = b[m]
+        data[f, 6 + m] = c[m]
+        data[f, 9 + m] = n[m]
+
+
 @njit(cache=True, parallel=True)
 def _face_data(points, faces):
     """Vertices a, b, c and unit normal n (right-hand rule, zero if degenerate) of every face: (F, 12)."""
     data = np.empty((faces.shape[0], 12))
     for f in prange(faces.shape[0]):
-        a, b, c = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
-        n = v3.cross(v3.sub(b, a), v3.sub(c, a))
-        length = v3.norm(n)
-        n = v3.scale(n, 1.0 / length) if length > 0.0 else (0.0, 0.0, 0.0)
-        for m in range(3):
-            data[f, m] = a[m]
-            data[f, 3 + m] = b[m]
-            data[f, 6 + m] = c[m]
-            data[f, 9 + m] = n[m]
+        _store_face(points, faces, f, data)
     return data
 
 
@@ -684,23 +721,62 @@ def _bucket_sort(bucket, key, face, first, table):
     return start, keys, items, firsts
 
 
+@njit(cache=True, inline="always")
+def _face_sphere(data, f):
+    """Bounding sphere (x, y, z, radius) of face ``f``, grown by :data:`_SPHERE_GROWTH` for rounding."""
+    c = v3.scale(v3.add(v3.add(_corner(data, f, 0), _corner(data, f, 1)), _corner(data, f, 2)), 1.0 / 3.0)
+    radius = 0.0
+    for m in range(3):
+        radius = max(radius, v3.norm(v3.sub(_corner(data, f, m), c)))
+    return c[0], c[1], c[2], radius + _SPHERE_GROWTH * (radius + abs(c[0]) + abs(c[1]) + abs(c[2]))
+
+
 @njit(cache=True, parallel=True)
 def _entry_spheres(data, items):
-    """Bounding sphere (centre, radius) of the face of every grid entry: (E, 4), in entry order.
+    """Bounding sphere (centre, radius) of the face of every grid entry, in entry order, and where each face's
+    entries are: (E, 4) spheres and the CSR (F + 1,), (E,) of the entries of every face.
 
-    The collision queries test these before touching a face, reading them
-    in the order they scan the entries.
+    The collision queries test the spheres before touching a face, reading
+    them in the order they scan the entries.
     """
+    n_faces = data.shape[0]
+    first = np.zeros(n_faces + 1, np.int64)
+    for q in range(items.shape[0]):
+        first[items[q] + 1] += 1
+    for f in range(n_faces):
+        first[f + 1] += first[f]
+    fill = first[:-1].copy()
+    entries = np.empty(items.shape[0], np.int64)
+    for q in range(items.shape[0]):
+        entries[fill[items[q]]] = q
+        fill[items[q]] += 1
     out = np.empty((items.shape[0], 4))
-    for q in prange(items.shape[0]):
-        f = items[q]
-        c = v3.scale(v3.add(v3.add(_corner(data, f, 0), _corner(data, f, 1)), _corner(data, f, 2)), 1.0 / 3.0)
-        radius = 0.0
-        for m in range(3):
-            radius = max(radius, v3.norm(v3.sub(_corner(data, f, m), c)))
-        out[q, 0], out[q, 1], out[q, 2] = c
-        out[q, 3] = radius + _SPHERE_GROWTH * (radius + abs(c[0]) + abs(c[1]) + abs(c[2]))  # rounding
-    return out
+    for f in prange(n_faces):
+        sphere = _face_sphere(data, f)
+        for q in range(first[f], first[f + 1]):
+            for m in range(4):
+                out[entries[q], m] = sphere[m]
+    return out, first, entries
+
+
+@njit(cache=True, parallel=True)
+def _refit(points, before, faces, data, spheres, first, entries):
+    """Update the face data and entry spheres of the faces with a vertex that differs from ``before``, in place.
+
+    Returns the largest coordinate change of any point.
+    """
+    moved = np.zeros(points.shape[0])
+    for i in prange(points.shape[0]):
+        moved[i] = max(abs(points[i, 0] - before[i, 0]), abs(points[i, 1] - before[i, 1]),
+                       abs(points[i, 2] - before[i, 2]))
+    for f in prange(faces.shape[0]):
+        if moved[faces[f, 0]] > 0.0 or moved[faces[f, 1]] > 0.0 or moved[faces[f, 2]] > 0.0:
+            _store_face(points, faces, f, data)
+            sphere = _face_sphere(data, f)
+            for q in range(first[f], first[f + 1]):
+                for m in range(4):
+                    spheres[entries[q], m] = sphere[m]
+    return moved.max() if points.shape[0] else 0.0
 
 
 @njit(cache=True)
@@ -728,8 +804,9 @@ def _largest_move(points, before):
     return moved.max() if points.shape[0] else 0.0
 
 
-def _mesh_grid(points: np.ndarray, faces: np.ndarray, radius: float) -> tuple[tuple, float]:
-    """Face data and hashed bounding-box grid of a mesh, as the tuple the collision kernels take, and its margin.
+def _mesh_grid(points: np.ndarray, faces: np.ndarray, radius: float) -> tuple[tuple, float, tuple]:
+    """Face data and hashed bounding-box grid of a mesh, as the tuple the collision kernels take, its margin, and
+    the grid entries of every face (CSR offsets (F + 1,) and entries (E,)) for refits.
 
     Faces are listed in the cells of their bounding boxes grown by the margin
     (:data:`_MARGIN` of a cell), so the grid stays valid while no point moves farther.
@@ -750,7 +827,8 @@ def _mesh_grid(points: np.ndarray, faces: np.ndarray, radius: float) -> tuple[tu
     bucket, key, face, first = (np.empty(offset[-1], np.int64) for _ in range(4))
     _face_entries(box, offset, dims, table - 1, bucket, key, face, first)
     start, keys, items, firsts = _bucket_sort(bucket, key, face, first, table)
-    return (data, lo, size, dims, start, keys, items, firsts, _entry_spheres(data, items)), margin
+    spheres, face_first, face_entries = _entry_spheres(data, items)
+    return (data, lo, size, dims, start, keys, items, firsts, spheres), margin, (face_first, face_entries)
 
 
 def _empty_grid() -> tuple:
@@ -1519,6 +1597,7 @@ class ParticleFluid:
         self._nbr = np.empty((0, self._capacity), np.int32)
         self._grid = _empty_grid()
         self._mesh: tuple | None = None  # points, faces and margin of the last grid build
+        self._entries: tuple = ()  # grid entries of every face (CSR) of the last grid build
         self._points: np.ndarray | None = None  # points of the last set_mesh
         self._last: _Work | None = None  # the last step's work, with its searches
         self._rows = np.zeros(0, np.int64)  # row of every particle in it (-1: none)
@@ -1625,14 +1704,14 @@ class ParticleFluid:
         pts, fcs = as_triangle_mesh(points, faces)
         if (self._mesh is not None and pts.shape == self._mesh[0].shape and np.array_equal(fcs, self._mesh[1])
                 and _largest_move(pts, self._mesh[0]) < self._mesh[2]):
-            data = _face_data(pts, fcs)  # refit: the faces are still in their cells
-            self._grid = (data,) + self._grid[1:8] + (_entry_spheres(data, self._grid[6]),)
-            if self._last is not None:
+            # refit: the faces are still in their cells; those with a moved vertex get new data and spheres
+            drift = _refit(pts, self._points, fcs, self._grid[0], self._grid[8], *self._entries)
+            if self._last is not None and drift > 0.0:
                 last = self._last
-                _refresh(data, _largest_move(pts, self._points), last.anchor, last.slack, last.gap, last.planes,
-                         last.n_planes, last.plane_face)
+                _refresh(self._grid[0], drift, last.anchor, last.slack, last.gap, last.planes, last.n_planes,
+                         last.plane_face)
         else:
-            self._grid, margin = _mesh_grid(pts, fcs, self.params.radius)
+            self._grid, margin, self._entries = _mesh_grid(pts, fcs, self.params.radius)
             self._mesh = (pts.copy(), fcs.copy(), margin)
             if self._last is not None:
                 self._last.forget()  # the faces are numbered anew
