@@ -189,6 +189,27 @@ def test_mesh_moved_over_a_particle_pushes_it_back_to_the_front():
     assert np.abs(fluid.velocities[0]).max() < 1e-6  # moved, not launched
 
 
+def test_wall_closing_in_from_afar_pushes_resting_particles_ahead_of_it():
+    # a floor and, far to the side, a wall facing the particles; only the wall's points move (same faces), from
+    # beyond every search's reach to past the particles: each move must reach the searches carried over
+    floor = [[-2.0, -1.0, 0.0], [2.0, -1.0, 0.0], [2.0, 1.0, 0.0], [-2.0, 1.0, 0.0]]
+    wall = [[0.0, -1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, 1.0], [0.0, -1.0, 1.0]]
+    points = np.array(floor + wall)
+    faces = [[0, 1, 2], [0, 2, 3], [4, 6, 5], [4, 7, 6]]  # the wall faces -x
+    fluid = ParticleFluid(FluidParameters(radius=R), domain=((-2, -1, -1), (2, 1, 1)))
+    fluid.add_particles(_block(1, 3, 1, corner=(-R, -3 * R, 0.0)))  # centres at x = 0
+    wall_only = np.repeat([[0.0], [1.0]], 4, axis=0) * [1.0, 0.0, 0.0]
+    start = 10 * R
+    fluid.set_mesh(points + start * wall_only, faces)
+    for _ in range(10):
+        fluid.step()
+    for x in np.arange(start, -4 * R, -0.3 * R):
+        fluid.set_mesh(points + x * wall_only, faces)
+        fluid.step()
+        assert fluid.positions[:, 0].max() <= x - R * (1.0 - 1e-6)  # never behind the wall
+    assert fluid.positions[:, 2].min() == pytest.approx(R, rel=0.02)  # still on the floor
+
+
 def test_emitter_rate_speed_and_direction_without_speed():
     params = FluidParameters(radius=0.02, gravity=(0.0, 0.0, 0.0), time_step=0.01)
     direction = np.array([1.0, 2.0, 2.0]) / 3.0

@@ -760,23 +760,28 @@ def _entry_spheres(data, items):
 
 
 @njit(cache=True, parallel=True)
-def _refit(points, before, faces, data, spheres, first, entries):
-    """Update the face data and entry spheres of the faces with a vertex that differs from ``before``, in place.
-
-    Returns the largest coordinate change of any point.
-    """
-    moved = np.zeros(points.shape[0])
+def _face_moves(points, before, faces):
+    """Largest coordinate change of the vertices of every face (F,) from ``before`` to ``points``, and of any point."""
+    moved = np.empty(points.shape[0])
     for i in prange(points.shape[0]):
         moved[i] = max(abs(points[i, 0] - before[i, 0]), abs(points[i, 1] - before[i, 1]),
                        abs(points[i, 2] - before[i, 2]))
+    out = np.empty(faces.shape[0])
     for f in prange(faces.shape[0]):
-        if moved[faces[f, 0]] > 0.0 or moved[faces[f, 1]] > 0.0 or moved[faces[f, 2]] > 0.0:
+        out[f] = max(moved[faces[f, 0]], moved[faces[f, 1]], moved[faces[f, 2]])
+    return out, moved.max() if points.shape[0] else 0.0
+
+
+@njit(cache=True, parallel=True)
+def _refit(points, faces, face_move, data, spheres, first, entries):
+    """Update the face data and entry spheres of the faces that moved (``face_move > 0``), in place."""
+    for f in prange(faces.shape[0]):
+        if face_move[f] > 0.0:
             _store_face(points, faces, f, data)
             sphere = _face_sphere(data, f)
             for q in range(first[f], first[f + 1]):
                 for m in range(4):
                     spheres[entries[q], m] = sphere[m]
-    return moved.max() if points.shape[0] else 0.0
 
 
 @njit(cache=True)
@@ -1034,19 +1039,63 @@ def _plane_push(p, r, planes, taken, plane_face, i):
     return p, contact, push
 
 
-@njit(cache=True, parallel=True)
-def _refresh(data, drift, anchor, slack, gap, planes, n_planes, plane_face):
-    """Carry the searches over a mesh move of at most ``drift`` along any axis, in place.
+@njit(cache=True)
+def _drift_buckets(grid, face_move, box):
+    """Largest move of a face within ``box`` (along every axis) of the cells of each bucket of the mesh grid: (T,).
 
-    Every slack shrinks by ``drift`` (the faces may have come that much
-    nearer; a negative slack forces a new search), every gap by sqrt(3)
-    ``drift`` (the same, as a distance), and every boundary plane
-    is recomputed from its face's new position: the face's plane, or for an
-    edge or corner the direction from its closest point to the anchor.
+    Every moved face writes its move into the buckets of the cells its
+    current bounding box grown by ``box`` meets, so a point's bucket holds
+    the largest move of any face that is now within ``box`` of it (of more,
+    where cells share a bucket).
     """
+    data, lo, size, dims, start = grid[0], grid[1], grid[2], grid[3], grid[4]
+    mask = start.shape[0] - 2
+    out = np.zeros(mask + 1)
+    for f in range(data.shape[0]):
+        move = face_move[f]
+        if move <= 0.0:
+            continue
+        a, b, c = _corner(data, f, 0), _corner(data, f, 1), _corner(data, f, 2)
+        low = (min(a[0], b[0], c[0]) - box, min(a[1], b[1], c[1]) - box, min(a[2], b[2], c[2]) - box)
+        high = (max(a[0], b[0], c[0]) + box, max(a[1], b[1], c[1]) + box, max(a[2], b[2], c[2]) + box)
+        i0, j0, k0, i1, j1, k1 = _cell_box(low, high, lo, size, dims)
+        for k in range(k0, k1 + 1 if i0 <= i1 else k0):
+            for j in range(j0, j1 + 1):
+                for i in range(i0, i1 + 1):
+                    q = (i + dims[0] * (j + dims[1] * k)) & mask
+                    out[q] = max(out[q], move)
+    return out
+
+
+@njit(cache=True, parallel=True)
+def _refresh(grid, drift, most_slack, anchor, slack, gap, planes, n_planes, plane_face):
+    """Carry the searches over a mesh move, in place; ``drift`` is :func:`_drift_buckets` for a box of
+    PLANE_REACH r + ``most_slack``.
+
+    Around a search point whose bucket holds a move ``d`` > 0, the slack
+    shrinks by ``d`` (the faces may have come that much nearer; a negative
+    slack forces a new search), the gap by sqrt(3) ``d`` (the same, as a
+    distance), and every boundary plane is recomputed from its face's new
+    position: the face's plane, or for an edge or corner the direction from
+    its closest point to the anchor. A search with more slack than
+    ``most_slack`` is dropped (the drift does not cover it).
+    """
+    data, lo, size, dims, start = grid[0], grid[1], grid[2], grid[3], grid[4]
+    mask = start.shape[0] - 2
     for i in prange(anchor.shape[0]):
-        slack[i] -= drift
-        gap[i] -= math.sqrt(3.0) * drift
+        if slack[i] > most_slack:
+            slack[i] = -1.0
+        if slack[i] < 0.0:
+            continue
+        key = 0
+        for m in range(2, -1, -1):  # the anchor's cell, clamped into the grid like the faces' cell ranges
+            c = min(max(int(np.floor(min(max((anchor[i, m] - lo[m]) / size, -_LIMIT), _LIMIT))), 0), dims[m] - 1)
+            key = key * dims[m] + c
+        d = drift[key & mask]
+        if d <= 0.0:
+            continue  # no face within box moved, nor any of its planes' faces
+        slack[i] -= d
+        gap[i] -= math.sqrt(3.0) * d
         for k in range(n_planes[i]):
             f = plane_face[i, k]
             a = _corner(data, f, 0)
@@ -1054,10 +1103,10 @@ def _refresh(data, drift, anchor, slack, gap, planes, n_planes, plane_face):
             offset = v3.dot(u, a)
             if planes[i, k, 5] > 0.0:
                 e = _closest_on_boundary(v3.row(anchor, i), a, _corner(data, f, 1), _corner(data, f, 2))
-                d = v3.sub(v3.row(anchor, i), e)
-                dist = v3.norm(d)
+                dv = v3.sub(v3.row(anchor, i), e)
+                dist = v3.norm(dv)
                 if dist > 0.0:
-                    u = v3.scale(d, 1.0 / dist)
+                    u = v3.scale(dv, 1.0 / dist)
                     offset = v3.dot(u, e)
             planes[i, k, 0], planes[i, k, 1], planes[i, k, 2] = u
             planes[i, k, 3] = offset
@@ -1702,19 +1751,27 @@ class ParticleFluid:
                 self._last.forget()
             return
         pts, fcs = as_triangle_mesh(points, faces)
-        if (self._mesh is not None and pts.shape == self._mesh[0].shape and np.array_equal(fcs, self._mesh[1])
-                and _largest_move(pts, self._mesh[0]) < self._mesh[2]):
-            # refit: the faces are still in their cells; those with a moved vertex get new data and spheres
-            drift = _refit(pts, self._points, fcs, self._grid[0], self._grid[8], *self._entries)
-            if self._last is not None and drift > 0.0:
-                last = self._last
-                _refresh(self._grid[0], drift, last.anchor, last.slack, last.gap, last.planes, last.n_planes,
-                         last.plane_face)
-        else:
+        if self._mesh is None or pts.shape != self._mesh[0].shape or not np.array_equal(fcs, self._mesh[1]):
             self._grid, margin, self._entries = _mesh_grid(pts, fcs, self.params.radius)
             self._mesh = (pts.copy(), fcs.copy(), margin)
             if self._last is not None:
                 self._last.forget()  # the faces are numbered anew
+        else:
+            face_move, drift = _face_moves(pts, self._points, fcs)
+            if drift == 0.0:
+                return
+            if _largest_move(pts, self._mesh[0]) < self._mesh[2]:
+                # refit: the faces are still in their cells; those that moved get new data and spheres
+                _refit(pts, fcs, face_move, self._grid[0], self._grid[8], *self._entries)
+            else:
+                self._grid, margin, self._entries = _mesh_grid(pts, fcs, self.params.radius)
+                self._mesh = (pts.copy(), fcs.copy(), margin)
+            if self._last is not None:  # the same faces: the searches carry over, shrunk where faces moved
+                last = self._last
+                r = self.params.radius
+                drift_buckets = _drift_buckets(self._grid, face_move, (PLANE_REACH + _CARRY) * r)
+                _refresh(self._grid, drift_buckets, _CARRY * r, last.anchor, last.slack, last.gap, last.planes,
+                         last.n_planes, last.plane_face)
         self._points = pts.copy()
 
     # -- stepping ------------------------------------------------------------------------------------------------
