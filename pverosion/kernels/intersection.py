@@ -22,7 +22,7 @@ from numba import njit, prange
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels.validation import as_triangle_mesh
 
-__all__ = ["intersecting_faces", "intersecting_pairs", "spatial_order", "triangles_intersect"]
+__all__ = ["candidate_pairs", "intersecting_faces", "intersecting_pairs", "spatial_order", "triangles_intersect"]
 
 
 FLAT = 1e-12
@@ -329,6 +329,91 @@ def _count_hits(points, faces, lo, hi, ok, query, origin, inv_h, start, entries,
                             hits[f] = True
                             hits[g] = True  # same value from any thread: a benign race
     return hits
+
+
+@njit(cache=True, error_model="numpy")
+def _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
+    """Whether cell (ix, iy, iz) is the lowest cell that the boxes of f and g both cover."""
+    fx0, fy0, fz0, _, _, _ = _cell_range(lo, hi, f, origin, inv_h)
+    gx0, gy0, gz0, _, _, _ = _cell_range(lo, hi, g, origin, inv_h)
+    return max(fx0, gx0) == ix and max(fy0, gy0) == iy and max(fz0, gz0) == iz
+
+
+@njit(cache=True, error_model="numpy")
+def _face_box_pairs(faces, lo, hi, ok, group, origin, inv_h, start, entries, cells, size, f, out, n_out):
+    """Faces g > f whose boxes meet f's box, that share no vertex with f and (with groups) are in another
+    group; written to ``out`` from ``n_out`` on when it is large enough. Returns the count."""
+    fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
+    for ix in range(fx0, fx1 + 1):
+        for iy in range(fy0, fy1 + 1):
+            for iz in range(fz0, fz1 + 1):
+                b = _hash(ix, iy, iz, size)
+                key = _key(ix, iy, iz)
+                for e in range(start[b], start[b + 1]):
+                    g = entries[e]
+                    if g <= f or cells[e] != key or not _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
+                        continue
+                    if group.shape[0] and group[f] == group[g]:
+                        continue
+                    overlap = True
+                    for d in range(3):
+                        if lo[f, d] > hi[g, d] or lo[g, d] > hi[f, d]:
+                            overlap = False
+                    if not overlap or _share_vertex(faces, f, g):
+                        continue
+                    if n_out < out.shape[0]:
+                        out[n_out, 0] = f
+                        out[n_out, 1] = g
+                    n_out += 1
+    return n_out
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def _box_pairs(faces, lo, hi, ok, group, origin, inv_h, start, entries, cells, size):
+    """All face pairs (f < g) of :func:`candidate_pairs`, in order of f: (K, 2)."""
+    n = faces.shape[0]
+    count = np.zeros(n + 1, np.int64)
+    none = np.empty((0, 2), np.int64)
+    for f in prange(n):
+        if ok[f]:
+            count[f + 1] = _face_box_pairs(faces, lo, hi, ok, group, origin, inv_h, start, entries, cells, size, f,
+                                           none, 0)
+    for f in range(n):
+        count[f + 1] += count[f]
+    out = np.empty((count[n], 2), np.int64)
+    for f in prange(n):
+        if ok[f] and count[f + 1] > count[f]:
+            rows = out[count[f]:count[f + 1]]
+            _face_box_pairs(faces, lo, hi, ok, group, origin, inv_h, start, entries, cells, size, f, rows, 0)
+    return out
+
+
+def candidate_pairs(points, faces, *, group=None) -> np.ndarray:
+    """Pairs of non-degenerate faces whose bounding boxes meet and that share no vertex (broad phase).
+
+    Parameters
+    ----------
+    points : array_like, shape (V, 3)
+    faces : array_like, shape (F, 3)
+    group : array_like of int, shape (F,), optional
+        Only pairs of faces in different groups (e.g. the input mesh of each
+        face); by default all pairs.
+
+    Returns
+    -------
+    numpy.ndarray, shape (K, 2), int64
+        Face pairs ``(f, g)`` with ``f < g``, sorted by ``f``.
+    """
+    pts, fcs = as_triangle_mesh(points, faces)
+    grp = np.zeros(0, np.int64) if group is None else np.asarray(group, dtype=np.int64)
+    if group is not None and grp.shape != (len(fcs),):
+        raise ValueError(f"group must have shape ({len(fcs)},); got {grp.shape}")
+    lo, hi, ok, origin, inv_h, _, n_ok = _face_boxes(pts, fcs)
+    if n_ok == 0:
+        return np.zeros((0, 2), np.int64)
+    size = 4 * n_ok + 1
+    start, entries, cells = _build_grid(lo, hi, ok, origin, inv_h, size)
+    return _box_pairs(fcs, lo, hi, ok, grp, origin, inv_h, start, entries, cells, size)
 
 
 def spatial_order(points, faces) -> np.ndarray:
