@@ -16,6 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from pverosion.kernels.predicates import orient2d
+
 __all__ = ["TriangleIndex", "box_triangles", "overlap_grid", "point_inside", "ray_winding", "segment_crossings", "unit_normals"]
 
 
@@ -206,8 +208,12 @@ def overlap_grid(points, faces, lo, size, dims, margin):
 
 @njit(cache=True, inline="always")
 def _edge_claims(ax, ay, bx, by, px, py):
-    """Orientation of p against edge a->b, with ties broken by the top-left rule (CCW triangle)."""
-    w = (bx - ax) * (py - ay) - (by - ay) * (px - ax)
+    """Orientation of p against edge a->b, with ties broken by the top-left rule (CCW triangle).
+
+    The orientation is exact, so the two triangles of an edge always see p on opposite sides of it (a float
+    determinant can put p outside both when the ray passes through the edge).
+    """
+    w = orient2d(ax, ay, bx, by, px, py)
     if w != 0.0:
         return w > 0.0
     return (by < ay) or (by == ay and bx > ax)
