@@ -7,10 +7,12 @@ and ParaView plugins.
 """
 
 from pverosion.api import (
+    boolean,
     curvature,
     freeze_thaw,
     hydraulic_erosion,
     materials_from_volume,
+    repair,
     sample_materials,
     shard_graph,
     voxel_erosion,
@@ -27,11 +29,13 @@ __all__ = [
     "CURVATURE_CMAP",
     "InvalidMeshError",
     "__version__",
+    "boolean",
     "curvature",
     "curvature_cmap",
     "freeze_thaw",
     "hydraulic_erosion",
     "materials_from_volume",
+    "repair",
     "sample_materials",
     "shard_graph",
     "voxel_erosion",

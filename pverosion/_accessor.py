@@ -45,3 +45,11 @@ class ErosionAccessor:
     def hydraulic(self, **options) -> pv.MultiBlock:
         """Hydraulic erosion of this closed mesh by a particle fluid; see :func:`pverosion.hydraulic_erosion`."""
         return api.hydraulic_erosion(self._dataset, **options)
+
+    def repair(self, *, orientation: str = "keep") -> pv.PolyData:
+        """Self-intersections of this closed mesh removed; see :func:`pverosion.repair`."""
+        return api.repair(self._dataset, orientation=orientation)
+
+    def boolean(self, other: pv.PolyData, operation: str = "union", *, orientation: str = "keep") -> pv.PolyData:
+        """Boolean ``operation`` of this closed mesh (A) and ``other`` (B); see :func:`pverosion.boolean`."""
+        return api.boolean(self._dataset, other, operation, orientation=orientation)

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pyvista as pv
+from vtkmodules.vtkCommonDataModel import vtkPolyData
 
 from pverosion._frontend import apply_filter
 from pverosion.filters.curvature import Curvature
 from pverosion.filters.hydraulic import HydraulicErosion
 from pverosion.filters.materials import MaterialSampler
+from pverosion.filters.repair import BooleanOperation, RepairIntersections
 from pverosion.filters.shards import FreezeThaw, ShardGraph
 from pverosion.filters.voxel import VoxelErosion
 from pverosion.filters.weathering import Weathering
@@ -22,8 +24,8 @@ from pverosion.kernels.materials import (
 from pverosion.kernels.particle_fluid import Drain, Emitter
 from pverosion.kernels.weathering import Erodibility
 
-__all__ = ["curvature", "freeze_thaw", "hydraulic_erosion", "materials_from_volume", "sample_materials", "shard_graph", "voxel_erosion",
-           "weather"]
+__all__ = ["boolean", "curvature", "freeze_thaw", "hydraulic_erosion", "materials_from_volume", "repair",
+           "sample_materials", "shard_graph", "voxel_erosion", "weather"]
 
 
 def curvature(mesh: pv.PolyData, *, orientation: str = "outward", normalization: str = "none") -> pv.PolyData:
@@ -334,6 +336,107 @@ def freeze_thaw(mesh: pv.PolyData, *, paths: int = 1000, cells: int = 1000, patt
     if not isinstance(mesh, pv.PolyData):
         raise TypeError(f"freeze_thaw needs a PolyData surface; got {type(mesh).__name__}")
     return pv.wrap(alg.run(mesh))
+
+
+def repair(mesh: pv.PolyData, *, orientation: str = "keep") -> pv.PolyData:
+    """Remove the self-intersections of a closed triangle mesh (Skorkovská's thesis §10.2).
+
+    The intersection curves are found with exact predicates and the faces
+    cut along them; the result is the boundary of the region where the
+    input's winding number is at least 1. Parts that ended up inside the
+    solid or turned inside out are cut away, overlapping closed parts merge,
+    and the result may consist of several closed pieces.
+
+    Parameters
+    ----------
+    mesh : pyvista.PolyData
+        Closed triangle mesh, oriented outward. It is not modified.
+    orientation : {"keep", "outward"}, default: "keep"
+        ``"keep"`` trusts the input's winding; ``"outward"`` first makes each
+        closed part consistent and outward (a part that starts inside another
+        one is taken for a cavity wall, so not for overlapping parts).
+
+    Returns
+    -------
+    pyvista.PolyData
+        Closed, intersection-free triangle mesh with point data
+        ``on_intersection`` (1 on the intersection curves), cell data
+        ``source_face`` (the input face each face is a piece of) and the
+        input's cell arrays, and field data ``intersection_cases`` (counts of
+        the thesis' cases, named by ``intersection_case_names``),
+        ``intersection_valid_cases``, ``intersection_impossible_cases``,
+        ``intersection_segments``, ``intersection_loops``,
+        ``intersection_touching`` and ``intersection_coplanar``.
+
+    Raises
+    ------
+    pverosion.InvalidMeshError
+        Empty or open mesh, non-triangles, or faces pointing inward.
+
+    Examples
+    --------
+    Two overlapping spheres in one mesh merge into one closed surface:
+
+    >>> import pyvista as pv, pverosion
+    >>> two = pv.Icosphere(radius=1.0, nsub=3) + pv.Icosphere(radius=1.0, nsub=3, center=(1.0, 0.0, 0.0))
+    >>> out = pverosion.repair(two)
+    >>> out.n_open_edges, int(out.field_data["intersection_loops"][0])
+    (0, 1)
+    >>> bool(out.volume < two.volume)
+    True
+    """
+    return apply_filter(RepairIntersections, mesh, orientation=orientation)
+
+
+def boolean(a: pv.PolyData, b: pv.PolyData, operation: str = "union", *, orientation: str = "keep") -> pv.PolyData:
+    """Union, intersection or difference of two closed triangle meshes (Skorkovská's thesis §10.3).
+
+    Parameters
+    ----------
+    a, b : pyvista.PolyData
+        Closed triangle meshes, oriented outward. They are not modified.
+    operation : {"union", "intersection", "difference", "reverse_difference"}, default: "union"
+        A ∪ B, A ∩ B, A ∖ B or B ∖ A.
+    orientation : {"keep", "outward"}, default: "keep"
+        ``"keep"`` trusts the inputs' winding; ``"outward"`` first makes each
+        closed part of each input consistent and outward.
+
+    Returns
+    -------
+    pyvista.PolyData
+        Closed triangle mesh with point data ``on_intersection`` (1 on the
+        intersection curves), cell data ``source_mesh`` (0 for faces from
+        ``a``, 1 from ``b``), ``source_face`` (the face of that input each face
+        is a piece of) and the cell arrays both inputs have, and the
+        field data of :func:`repair`. Empty when nothing is left (the
+        intersection of disjoint meshes).
+
+    Raises
+    ------
+    ValueError
+        For an unknown operation.
+    TypeError
+        If ``a`` or ``b`` is not a PolyData surface.
+    pverosion.InvalidMeshError
+        Empty or open input, non-triangles, or faces pointing inward; the
+        message names the input (mesh A or mesh B).
+
+    Examples
+    --------
+    >>> import pyvista as pv, pverosion
+    >>> box = pv.Box(bounds=(-1.0, 1.0, -1.0, 1.0, -1.0, 1.0)).triangulate()
+    >>> ball = pv.Icosphere(radius=1.2, nsub=3)
+    >>> out = pverosion.boolean(box, ball, "difference")
+    >>> out.n_open_edges, sorted(set(out["source_mesh"].tolist()))
+    (0, [0, 1])
+    >>> bool(0.0 < out.volume < box.volume)
+    True
+    """
+    for name, mesh in (("a", a), ("b", b)):
+        if not isinstance(mesh, vtkPolyData):
+            hint = " (call .extract_surface() first)" if isinstance(mesh, pv.DataSet) else ""
+            raise TypeError(f"boolean needs PolyData surfaces{hint}; {name} is {type(mesh).__name__}")
+    return pv.wrap(BooleanOperation(operation=operation, orientation=orientation).run(a, b))
 
 
 def _spec(item, kind: str) -> str:

@@ -28,6 +28,11 @@ def _add_filter_options(parser: argparse.ArgumentParser, filter_cls: type[Erosio
                                 help=f"{p.doc} (default: {p.default})")
 
 
+def _port_label(name: str) -> str:
+    """Command-line name of an input port: ``InputA`` -> ``A``."""
+    return name.removeprefix("Input") or name
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``pverosion`` argument parser."""
     parser = argparse.ArgumentParser(prog="pverosion", description="Erosion simulation on 3D meshes and voxel fields.")
@@ -54,11 +59,18 @@ def build_parser() -> argparse.ArgumentParser:
             output = ".vtm, a MultiBlock" if filter_cls.OUTPUT_TYPE == "vtkMultiBlockDataSet" else ".vti"
             cmd.add_argument("-o", "--output", type=Path, required=True, help=f"output ({output})")
             cmd.add_argument("--screenshot", type=Path, help="also plot the three middle slices to this PNG")
-        else:
+        elif len(filter_cls.INPUT_PORTS) == 1:
             cmd.add_argument("input", type=Path,
                              help="input surface (any format PyVista reads: PLY, STL, OBJ, VTP, VTK)")
             output = ".vtm, a MultiBlock" if filter_cls.OUTPUT_TYPE == "vtkMultiBlockDataSet" else ".vtp recommended"
             cmd.add_argument("-o", "--output", type=Path, required=True, help=f"output file ({output})")
+            cmd.add_argument("--screenshot", type=Path, help="also render the result off-screen to this PNG")
+        else:  # one positional argument per input port: input0, input1, ...
+            for port, name in enumerate(filter_cls.INPUT_PORTS):
+                label = _port_label(name)
+                cmd.add_argument(f"input{port}", metavar=label, type=Path,
+                                 help=f"input surface {label} (any format PyVista reads: PLY, STL, OBJ, VTP, VTK)")
+            cmd.add_argument("-o", "--output", type=Path, required=True, help="output file (.vtp recommended)")
             cmd.add_argument("--screenshot", type=Path, help="also render the result off-screen to this PNG")
         _add_filter_options(cmd, filter_cls)
         if filter_cls.TIME_DEPENDENT:
@@ -107,16 +119,27 @@ def _run_stage(args: argparse.Namespace) -> None:
 
     filter_cls = args.filter_cls
     options = {p.name: getattr(args, p.name) for p in filter_cls.PARAMS}
-    mesh = read_image(args.input) if filter_cls.INPUT_TYPE == "vtkImageData" else read_mesh(args.input)
-    start = time.perf_counter()
-    if filter_cls.TIME_DEPENDENT:
-        result = _run_time_stage(filter_cls, mesh, options, args)
+    if len(filter_cls.INPUT_PORTS) > 1:  # several surfaces (booleans)
+        import pyvista as pv
+
+        meshes = [read_mesh(getattr(args, f"input{port}")) for port in range(len(filter_cls.INPUT_PORTS))]
+        start = time.perf_counter()
+        result = pv.wrap(filter_cls(**options).run(*meshes))
+        n_points, n_cells = sum(m.n_points for m in meshes), sum(m.n_cells for m in meshes)
     else:
-        result = apply_filter(filter_cls, mesh, **options)
+        mesh = read_image(args.input) if filter_cls.INPUT_TYPE == "vtkImageData" else read_mesh(args.input)
+        start = time.perf_counter()
+        if filter_cls.TIME_DEPENDENT:
+            result = _run_time_stage(filter_cls, mesh, options, args)
+        else:
+            result = apply_filter(filter_cls, mesh, **options)
+        n_points, n_cells = mesh.n_points, mesh.n_cells
     elapsed = time.perf_counter() - start
     write_atomic(result, args.output)
-    print(f"{filter_cls.command_name()}: {mesh.n_points} points, {mesh.n_cells} cells in {elapsed:.3f} s -> {args.output}")
-    if args.screenshot:
+    print(f"{filter_cls.command_name()}: {n_points} points, {n_cells} cells in {elapsed:.3f} s -> {args.output}")
+    if args.screenshot and filter_cls.OUTPUT_TYPE == "vtkPolyData" and result.n_cells == 0:
+        print("screenshot skipped: the result is empty")
+    elif args.screenshot:
         from pverosion.plotting import plot_slices, render_scalars
 
         if filter_cls.OUTPUT_TYPE == "vtkImageData":
@@ -128,6 +151,10 @@ def _run_stage(args: argparse.Namespace) -> None:
         elif filter_cls.OUTPUT_TYPE == "vtkMultiBlockDataSet":  # shards: the remaining shards
             shown = result["shards"] if "shards" in result.keys() else result["surface"]
             render_scalars(shown, args.screenshot, scalars="shard_colour", cmap="tab20")
+        elif "source_mesh" in result.cell_data:  # boolean: faces coloured by the input they come from
+            render_scalars(result, args.screenshot, scalars="source_mesh", cmap="coolwarm")
+        elif "on_intersection" in result.point_data:  # repair: the intersection curves
+            render_scalars(result, args.screenshot, scalars="on_intersection", cmap="coolwarm")
         else:
             render_scalars(result, args.screenshot)
         print(f"screenshot -> {args.screenshot}")

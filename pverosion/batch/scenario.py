@@ -56,8 +56,10 @@ from pverosion.filters.base import ErosionFilter, Param
 
 __all__ = ["IMAGE_SUFFIXES", "STAGES", "Job", "Scenario", "ScenarioError", "load_scenario", "parse_scenario"]
 
-STAGES: dict[str, type[ErosionFilter]] = {cls.command_name(): cls for cls in ALL_FILTERS}
-"""Stages a scenario may use, by CLI command name."""
+STAGES: dict[str, type[ErosionFilter]] = {
+    cls.command_name(): cls for cls in ALL_FILTERS if len(cls.INPUT_PORTS) == 1
+}
+"""Stages a scenario may use, by CLI command name (the one-input stages: a job erodes one mesh)."""
 
 IMAGE_SUFFIXES = (".vti", ".mhd", ".mha", ".nrrd", ".nhdr")
 """File suffixes read as volumes (ImageData); anything else is read as a surface."""

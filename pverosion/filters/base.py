@@ -104,9 +104,10 @@ class Param:
 
 
 class ErosionFilter(VTKPythonAlgorithmBase):
-    """Base class of all pverosion filters (one input port, one output port).
+    """Base class of all pverosion filters (one input port unless ``INPUT_PORTS`` names more, one output port).
 
-    Subclasses set ``PARAMS``, ``LABEL`` and implement :meth:`execute`.
+    Subclasses set ``PARAMS``, ``LABEL`` and implement :meth:`execute`, which
+    gets one input data object per port, then the output.
     Keyword arguments of the constructor set options by their snake_case name.
 
     Errors raised by :meth:`execute` are kept and re-raised by :meth:`run`
@@ -121,6 +122,9 @@ class ErosionFilter(VTKPythonAlgorithmBase):
     TIME_DEPENDENT: ClassVar[bool] = False
     """Whether the output publishes TIME_STEPS (one per simulation step)."""
     INPUT_TYPE: ClassVar[str] = "vtkPolyData"
+    """Data type of every input port."""
+    INPUT_PORTS: ClassVar[tuple[str, ...]] = ("Input",)
+    """Names of the input ports, in port order (ParaView input properties; CLI positional arguments)."""
     OUTPUT_TYPE: ClassVar[str] = "vtkPolyData"
 
     def __init_subclass__(cls, **kwargs):
@@ -134,7 +138,7 @@ class ErosionFilter(VTKPythonAlgorithmBase):
 
     def __init__(self, **options):
         VTKPythonAlgorithmBase.__init__(
-            self, nInputPorts=1, inputType=self.INPUT_TYPE, nOutputPorts=1, outputType=self.OUTPUT_TYPE
+            self, nInputPorts=len(self.INPUT_PORTS), inputType=self.INPUT_TYPE, nOutputPorts=1, outputType=self.OUTPUT_TYPE
         )
         self._values = {p.name: p.default for p in self.PARAMS}
         self._error: BaseException | None = None
@@ -173,13 +177,13 @@ class ErosionFilter(VTKPythonAlgorithmBase):
         return dict(self._values)
 
     def RequestData(self, request, in_info, out_info):
-        """Run :meth:`execute` on the input and output data objects."""
+        """Run :meth:`execute` on the input data object(s) and the output data object."""
         self._error = None
         try:
-            inp = self.GetInputData(in_info, 0, 0)
+            inputs = [self.GetInputData(in_info, port, 0) for port in range(len(self.INPUT_PORTS))]
             out = self.GetOutputData(out_info, 0)
             self.UpdateProgress(0.0)
-            self.execute(inp, out)
+            self.execute(*inputs, out)
             self.UpdateProgress(1.0)
         except Exception as exc:  # noqa: BLE001 - kept and re-raised by run()
             self._error = exc
@@ -187,32 +191,44 @@ class ErosionFilter(VTKPythonAlgorithmBase):
         return 1
 
     def execute(self, inp, out) -> None:
-        """Fill ``out`` from ``inp``; implemented by each stage."""
+        """Fill ``out`` from ``inp`` (one argument per input port); implemented by each stage."""
         raise NotImplementedError
 
-    def run(self, data):
+    def run(self, data, *others):
         """Execute on ``data`` and return a new output object; raise the error of a failed run.
 
         Parameters
         ----------
         data : vtkDataObject
             Input data object (PyVista datasets are VTK objects too).
+        *others : vtkDataObject
+            The inputs of the further ports of a filter with several (``INPUT_PORTS``).
 
         Returns
         -------
         vtkDataObject
             A new object, independent of this filter's later updates.
-        """
-        return self.run_time(data, None)
 
-    def run_time(self, data, time: float | None):
+        Raises
+        ------
+        TypeError
+            If the number of inputs is not the number of input ports.
+        """
+        return self.run_time(data, None, *others)
+
+    def run_time(self, data, time: float | None, *others):
         """Like :meth:`run`, at output time ``time`` of a time-dependent filter (None: the default).
 
-        The input stays connected, so a time-dependent filter can continue
+        The inputs stay connected, so a time-dependent filter can continue
         from its cached state when a later time is asked for.
         """
-        if self.GetInputDataObject(0, 0) is not data:
-            self.SetInputDataObject(0, data)
+        inputs = (data, *others)
+        if len(inputs) != len(self.INPUT_PORTS):
+            raise TypeError(f"{type(self).__name__} takes {len(self.INPUT_PORTS)} input(s) "
+                            f"({', '.join(self.INPUT_PORTS)}); got {len(inputs)}")
+        for port, obj in enumerate(inputs):
+            if self.GetInputDataObject(port, 0) is not obj:
+                self.SetInputDataObject(port, obj)
         shown = vtkObject.GetGlobalWarningDisplay()
         vtkObject.GlobalWarningDisplayOff()
         try:

@@ -3,7 +3,8 @@
 This module never imports ParaView: the plugin file in the top-level
 ``filters/`` folder passes in the decorators of ``paraview.util.vtkAlgorithm``.
 Each option becomes one property whose command is a thin method of the
-generated subclass; string choices become an enumeration.
+generated subclass; string choices become an enumeration; each input port
+(``INPUT_PORTS``) becomes one input property.
 """
 
 from __future__ import annotations
@@ -75,7 +76,9 @@ def make_proxy(filter_cls: type[ErosionFilter], decorators: SimpleNamespace, mod
         func.__name__ = method
         namespace[method] = decorators.smproperty.xml(_property_xml(p, method))(func)
     cls = type(name, (filter_cls,), namespace)
-    cls = decorators.smdomain.datatype(dataTypes=[filter_cls.INPUT_TYPE], composite_data_supported=False)(cls)
-    cls = decorators.smproperty.input(name="Input", port_index=0)(cls)
+    # decorators apply bottom-up in ParaView: each port's data type domain first, then its input property
+    for port, port_name in enumerate(filter_cls.INPUT_PORTS):
+        cls = decorators.smdomain.datatype(dataTypes=[filter_cls.INPUT_TYPE], composite_data_supported=False)(cls)
+        cls = decorators.smproperty.input(name=port_name, port_index=port)(cls)
     cls = decorators.smhint.xml(f'<ShowInMenu category="{MENU_CATEGORY}"/>')(cls)
     return decorators.smproxy.filter(name=name, label=f"pverosion {filter_cls.LABEL}")(cls)

@@ -340,9 +340,11 @@ def _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
 
 
 @njit(cache=True, error_model="numpy")
-def _face_box_pairs(faces, lo, hi, ok, group, origin, inv_h, start, entries, cells, size, f, out, n_out):
-    """Faces g > f whose boxes meet f's box, that share no vertex with f and (with groups) are in another
-    group; written to ``out`` from ``n_out`` on when it is large enough. Returns the count."""
+def _face_box_pairs(points, faces, planes, lo, hi, group, origin, inv_h, start, entries, cells, size, f, out,
+                    n_out):
+    """Faces g > f whose boxes meet f's box, that share no vertex with f, (with groups) are in another group,
+    and that neither lies strictly on one side of the other's plane; written to ``out`` from ``n_out`` on when
+    it is large enough. Returns the count."""
     fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
     for ix in range(fx0, fx1 + 1):
         for iy in range(fy0, fy1 + 1):
@@ -361,6 +363,8 @@ def _face_box_pairs(faces, lo, hi, ok, group, origin, inv_h, start, entries, cel
                             overlap = False
                     if not overlap or _share_vertex(faces, f, g):
                         continue
+                    if _one_side(points, faces, planes, f, g) or _one_side(points, faces, planes, g, f):
+                        continue
                     if n_out < out.shape[0]:
                         out[n_out, 0] = f
                         out[n_out, 1] = g
@@ -369,27 +373,69 @@ def _face_box_pairs(faces, lo, hi, ok, group, origin, inv_h, start, entries, cel
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
-def _box_pairs(faces, lo, hi, ok, group, origin, inv_h, start, entries, cells, size):
+def _face_planes(points, faces):
+    """Unit normal, offset and a bound of the rounding of plane distances of every face: (F, 5)."""
+    out = np.zeros((faces.shape[0], 5))
+    for f in prange(faces.shape[0]):
+        p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
+        n = v3.cross(v3.sub(p1, p0), v3.sub(p2, p0))
+        length = v3.norm(n)
+        if length == 0.0:
+            out[f, 4] = np.inf
+            continue
+        n = v3.scale(n, 1.0 / length)
+        out[f, 0], out[f, 1], out[f, 2] = n
+        out[f, 3] = v3.dot(n, p0)
+        scale = 0.0
+        for p in (p0, p1, p2):
+            scale = max(scale, abs(p[0]) + abs(p[1]) + abs(p[2]))
+        out[f, 4] = 1e-9 * scale  # far above the rounding of n . p - d for the points near the face
+    return out
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _one_side(points, faces, planes, f, g):
+    """Whether face g lies strictly on one side of face f's plane, by more than the rounding (a float test that
+    never rejects a pair an exact test would call touching)."""
+    above = below = 0
+    for k in range(3):
+        p = v3.row(points, faces[g, k])
+        d = planes[f, 0] * p[0] + planes[f, 1] * p[1] + planes[f, 2] * p[2] - planes[f, 3]
+        tol = planes[f, 4] + 1e-9 * (abs(p[0]) + abs(p[1]) + abs(p[2]))
+        if d > tol:
+            above += 1
+        elif d < -tol:
+            below += 1
+    return above == 3 or below == 3
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def _box_pairs(points, faces, planes, lo, hi, ok, group, origin, inv_h, start, entries, cells, size):
     """All face pairs (f < g) of :func:`candidate_pairs`, in order of f: (K, 2)."""
     n = faces.shape[0]
     count = np.zeros(n + 1, np.int64)
     none = np.empty((0, 2), np.int64)
     for f in prange(n):
         if ok[f]:
-            count[f + 1] = _face_box_pairs(faces, lo, hi, ok, group, origin, inv_h, start, entries, cells, size, f,
-                                           none, 0)
+            count[f + 1] = _face_box_pairs(points, faces, planes, lo, hi, group, origin, inv_h, start, entries,
+                                           cells, size, f, none, 0)
     for f in range(n):
         count[f + 1] += count[f]
     out = np.empty((count[n], 2), np.int64)
     for f in prange(n):
         if ok[f] and count[f + 1] > count[f]:
             rows = out[count[f]:count[f + 1]]
-            _face_box_pairs(faces, lo, hi, ok, group, origin, inv_h, start, entries, cells, size, f, rows, 0)
+            _face_box_pairs(points, faces, planes, lo, hi, group, origin, inv_h, start, entries, cells, size, f,
+                            rows, 0)
     return out
 
 
 def candidate_pairs(points, faces, *, group=None) -> np.ndarray:
-    """Pairs of non-degenerate faces whose bounding boxes meet and that share no vertex (broad phase).
+    """Pairs of non-degenerate faces that may meet and share no vertex (broad phase).
+
+    Their bounding boxes meet, and neither face lies on one side of the
+    other's plane by more than a generous bound of the rounding (so every
+    pair that touches in exact arithmetic is kept).
 
     Parameters
     ----------
@@ -413,7 +459,7 @@ def candidate_pairs(points, faces, *, group=None) -> np.ndarray:
         return np.zeros((0, 2), np.int64)
     size = 4 * n_ok + 1
     start, entries, cells = _build_grid(lo, hi, ok, origin, inv_h, size)
-    return _box_pairs(fcs, lo, hi, ok, grp, origin, inv_h, start, entries, cells, size)
+    return _box_pairs(pts, fcs, _face_planes(pts, fcs), lo, hi, ok, grp, origin, inv_h, start, entries, cells, size)
 
 
 def spatial_order(points, faces) -> np.ndarray:

@@ -17,7 +17,9 @@ coordinates, so two triangle pairs that meet at the same point name it alike:
 - an input vertex (coincident input vertices are one point), when a vertex of
   one triangle lies on the other;
 - an edge and a face, when an edge crosses a face's interior;
-- two edges, when they cross each other inside both.
+- two edges, when they cross each other inside both;
+- three faces, where the segments of two pairs cross inside a face (three
+  surfaces meet at a point).
 
 The segments of all pairs then link up through their shared points into
 polylines (:func:`trace_polylines`): following a segment's end to the next
@@ -28,6 +30,7 @@ segment is the step of TNOIT to the neighbouring triangle across the edge
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 from numba import njit, prange
@@ -36,7 +39,8 @@ from pverosion.kernels.intersection import candidate_pairs
 from pverosion.kernels.predicates import sign_orient2d, sign_orient3d
 from pverosion.kernels.validation import as_triangle_mesh
 
-__all__ = ["CASES", "IMPOSSIBLE_CASES", "IntersectionCurves", "canonical_vertices", "intersection_curves", "trace_polylines"]
+__all__ = ["CASES", "IMPOSSIBLE_CASES", "IntersectionCurves", "canonical_vertices", "intersection_curves", "trace_polylines",
+           "unique_rows"]
 
 CASES = ("000", "001", "002", "011", "012", "022", "111", "112", "122", "222")
 """The thesis' classification of a line against a triangle: per edge, 0 (meets outside), 1 (at a vertex),
@@ -44,7 +48,7 @@ CASES = ("000", "001", "002", "011", "012", "022", "111", "112", "122", "222")
 IMPOSSIBLE_CASES = ("001", "002", "012", "122", "222")
 """Cases no line can produce; a floating-point classification can."""
 
-VERTEX, EDGE_FACE, EDGE_EDGE = 0, 1, 2
+VERTEX, EDGE_FACE, EDGE_EDGE, FACE_FACE_FACE = 0, 1, 2, 3
 """Kinds of intersection points (first column of :attr:`IntersectionCurves.point_keys`)."""
 
 # location of a point on a triangle: 0..2 its vertex k, 3..5 inside its edge k (from vertex k to k + 1),
@@ -69,7 +73,8 @@ class IntersectionCurves:
         What produces each point: ``(VERTEX, v, 0)`` with ``v`` the lowest
         index of the input vertices at that position; ``(EDGE_FACE, e, f)``
         with ``e = a * V + b`` the edge between vertices a < b and ``f`` the
-        face; ``(EDGE_EDGE, e1, e2)`` with ``e1 < e2``.
+        face; ``(EDGE_EDGE, e1, e2)`` with ``e1 < e2``; ``(FACE_FACE_FACE, f,
+        g * F + h)`` where three faces f < g < h meet (their segments cross).
     segments : numpy.ndarray, shape (S, 2), int64
         Point indices of the intersection segment of each intersecting pair.
     pairs : numpy.ndarray, shape (S, 2), int64
@@ -349,21 +354,158 @@ def _coordinates(p, faces, keys):
             f = keys[i, 2]
             x, y, z = _edge_face_point(p, a, b, faces[f, 0], faces[f, 1], faces[f, 2])
             out[i, 0], out[i, 1], out[i, 2] = x, y, z
-        else:
+        elif kind == EDGE_EDGE:
             a, b = keys[i, 1] // n_vertices, keys[i, 1] % n_vertices
             c, d = keys[i, 2] // n_vertices, keys[i, 2] % n_vertices
             x, y, z = _edge_edge_point(p, a, b, c, d)
             out[i, 0], out[i, 1], out[i, 2] = x, y, z
+        else:
+            x, y, z = _three_planes(p, faces, keys[i, 1], keys[i, 2] // faces.shape[0], keys[i, 2] % faces.shape[0])
+            out[i, 0], out[i, 1], out[i, 2] = x, y, z
     return out
+
+
+@njit(cache=True)
+def _three_planes(p, faces, f, g, h):
+    """The point where the planes of faces f, g and h meet (Cramer's rule, in floating point)."""
+    rows = np.empty((3, 3))
+    rhs = np.empty(3)
+    for r, t in enumerate((f, g, h)):
+        a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
+        ux, uy, uz = p[b, 0] - p[a, 0], p[b, 1] - p[a, 1], p[b, 2] - p[a, 2]
+        vx, vy, vz = p[c, 0] - p[a, 0], p[c, 1] - p[a, 1], p[c, 2] - p[a, 2]
+        rows[r, 0], rows[r, 1], rows[r, 2] = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+        rhs[r] = rows[r, 0] * p[a, 0] + rows[r, 1] * p[a, 1] + rows[r, 2] * p[a, 2]
+    x = np.linalg.solve(rows, rhs)
+    return x[0], x[1], x[2]
+
+
+# --- where three surfaces meet -----------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _crossings_on_faces(p, faces, coords, segments, listed_face, listed_partner, listed_segment, start):
+    """Segments of different partner faces that cross inside a face: rows (face, segment 1, segment 2).
+
+    The listing holds every (face, partner, segment) sorted by face, the
+    faces' runs starting at ``start``; two segments cross when their 2-D
+    projections along the face's normal cross strictly (exact orient2d on
+    the computed points).
+    """
+    found = []
+    for i in range(start.shape[0] - 1):
+        lo, hi = start[i], start[i + 1]
+        if hi - lo < 2:
+            continue
+        f = listed_face[lo]
+        axis = _drop_axis(p, faces[f])
+        u, v = (axis + 1) % 3, (axis + 2) % 3
+        for m in range(lo, hi):
+            s1 = listed_segment[m]
+            a, b = segments[s1, 0], segments[s1, 1]
+            for n in range(m + 1, hi):
+                s2 = listed_segment[n]
+                if listed_partner[m] == listed_partner[n]:
+                    continue
+                c, d = segments[s2, 0], segments[s2, 1]
+                if a == c or a == d or b == c or b == d:
+                    continue
+                o1 = sign_orient2d(coords[a, u], coords[a, v], coords[b, u], coords[b, v], coords[c, u], coords[c, v])
+                o2 = sign_orient2d(coords[a, u], coords[a, v], coords[b, u], coords[b, v], coords[d, u], coords[d, v])
+                o3 = sign_orient2d(coords[c, u], coords[c, v], coords[d, u], coords[d, v], coords[a, u], coords[a, v])
+                o4 = sign_orient2d(coords[c, u], coords[c, v], coords[d, u], coords[d, v], coords[b, u], coords[b, v])
+                if o1 * o2 < 0 and o3 * o4 < 0:
+                    found.append((f, s1, s2))
+    out = np.empty((len(found), 3), np.int64)
+    for k in range(len(found)):
+        out[k, 0], out[k, 1], out[k, 2] = found[k]
+    return out
+
+
+def _split_at_triple_points(pts, fcs, keys, coords, segments, pairs, locations):
+    """Split the segments where the curves of three surfaces cross (a point of three faces).
+
+    Returns the keys, coordinates, segments, pairs and locations with the
+    crossing points added and every crossed segment cut there.
+    """
+    n_seg = len(segments)
+    if n_seg < 2:
+        return keys, coords, segments, pairs, locations
+    face = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    other = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    seg = np.concatenate([np.arange(n_seg), np.arange(n_seg)])
+    order = np.argsort(face, kind="stable")
+    face, other, seg = face[order], other[order], seg[order]
+    start = np.flatnonzero(np.r_[True, face[1:] != face[:-1], True])
+    crossings = _crossings_on_faces(pts, fcs, coords, segments, face, other, seg, start)
+    if len(crossings) == 0:
+        return keys, coords, segments, pairs, locations
+    n_faces = len(fcs)
+    f = crossings[:, 0]
+    g = np.where(pairs[crossings[:, 1], 0] == f, pairs[crossings[:, 1], 1], pairs[crossings[:, 1], 0])
+    h = np.where(pairs[crossings[:, 2], 0] == f, pairs[crossings[:, 2], 1], pairs[crossings[:, 2], 0])
+    tri = np.sort(np.stack([f, g, h], axis=1), axis=1)
+    new_keys = np.stack([np.full(len(tri), FACE_FACE_FACE), tri[:, 0], tri[:, 1] * n_faces + tri[:, 2]], axis=1)
+    # the segment of the third pair (g, h), where there is one, passes through the same point
+    pair_key = np.minimum(pairs[:, 0], pairs[:, 1]) * n_faces + np.maximum(pairs[:, 0], pairs[:, 1])
+    by_key = np.argsort(pair_key)
+    wanted = np.minimum(g, h) * n_faces + np.maximum(g, h)
+    at = np.minimum(np.searchsorted(pair_key[by_key], wanted), len(by_key) - 1)
+    third = np.where(pair_key[by_key[at]] == wanted, by_key[at], -1)
+    split_seg = np.concatenate([crossings[:, 1], crossings[:, 2], third])
+    split_key = np.concatenate([new_keys, new_keys, new_keys])
+    split_key, split_seg = split_key[split_seg >= 0], split_seg[split_seg >= 0]
+    all_keys, inverse = unique_rows(np.concatenate([keys, split_key]))
+    if len(all_keys) != len(keys) + len(unique_rows(split_key)[0]):
+        raise RuntimeError("a point where three faces meet was also found as another kind of point")
+    # the old points keep their order (FACE_FACE_FACE sorts last), the new ones follow
+    all_coords = np.concatenate([coords, _coordinates(pts, fcs, all_keys[len(keys):])])
+    split_point = inverse[len(keys):]
+    split = np.zeros(n_seg, bool)
+    split[split_seg] = True
+    out_seg, out_pairs, out_loc = [segments[~split]], [pairs[~split]], [locations[~split]]
+    order = np.argsort(split_seg, kind="stable")
+    split_seg, split_point = split_seg[order], split_point[order]
+    bounds = np.flatnonzero(np.r_[True, split_seg[1:] != split_seg[:-1], True])
+    for lo, hi in pairwise(bounds):
+        s = split_seg[lo]
+        a, b = segments[s]
+        middle = np.unique(split_point[lo:hi])
+        along = (all_coords[middle] - all_coords[a]) @ (all_coords[b] - all_coords[a])
+        chain = np.r_[a, middle[np.argsort(along)], b]
+        loc = np.full((len(chain) - 1, 2, 2), _INSIDE, np.int64)
+        loc[0, 0] = locations[s, 0]
+        loc[-1, 1] = locations[s, 1]
+        out_seg.append(np.stack([chain[:-1], chain[1:]], axis=1))
+        out_pairs.append(np.repeat(pairs[s:s + 1], len(chain) - 1, axis=0))
+        out_loc.append(loc)
+    return all_keys, all_coords, np.concatenate(out_seg), np.concatenate(out_pairs), np.concatenate(out_loc)
 
 
 # --- the whole boundary --------------------------------------------------------------------------------------
 
 
+def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sorted unique rows of an (N, K) integer array and the index of every input row among them (N,)."""
+    if len(rows) == 0:
+        return rows.copy(), np.zeros(0, np.int64)
+    order = np.lexsort(rows.T[::-1])
+    ordered = rows[order]
+    new = np.r_[True, np.any(ordered[1:] != ordered[:-1], axis=1)]
+    inverse = np.empty(len(rows), np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    return ordered[new], inverse
+
+
 def canonical_vertices(points: np.ndarray) -> np.ndarray:
     """The lowest index of the vertices at the position of every vertex (V,): coincident vertices as one."""
-    _, first, inverse = np.unique(points, axis=0, return_index=True, return_inverse=True)
-    return first[inverse.ravel()].astype(np.int64)
+    order = np.lexsort(points.T[::-1])  # stable: the lowest index first among equal rows
+    ordered = points[order]
+    group = np.cumsum(np.r_[True, np.any(ordered[1:] != ordered[:-1], axis=1)]) - 1
+    first = order[np.r_[0, np.flatnonzero(np.diff(group)) + 1]]
+    canon = np.empty(len(points), np.int64)
+    canon[order] = first[group]
+    return canon
 
 
 def intersection_curves(points, faces, *, group=None) -> IntersectionCurves:
@@ -403,16 +545,18 @@ def intersection_curves(points, faces, *, group=None) -> IntersectionCurves:
     case_counts = np.bincount(cases[status != _APART].ravel(), minlength=len(CASES)).astype(np.int64)
     seg_keys = keys[crossing].reshape(-1, 3)
     if len(seg_keys):
-        unique, inverse = np.unique(seg_keys, axis=0, return_inverse=True)
-        segments = inverse.reshape(-1, 2).astype(np.int64)
+        unique, inverse = unique_rows(seg_keys)
+        segments = inverse.reshape(-1, 2)
     else:
         unique, segments = np.zeros((0, 3), np.int64), np.zeros((0, 2), np.int64)
+    unique, coords, segments, seg_pairs, seg_locs = _split_at_triple_points(
+        pts, fcs, unique, _coordinates(pts, fcs, unique), segments, pairs[crossing], locs[crossing])
     return IntersectionCurves(
-        points=_coordinates(pts, fcs, unique),
+        points=coords,
         point_keys=unique,
         segments=segments,
-        pairs=pairs[crossing],
-        locations=locs[crossing],
+        pairs=seg_pairs,
+        locations=seg_locs,
         cases=case_counts,
         touching=int(np.count_nonzero(status == _TOUCH)),
         coplanar=pairs[status == _COPLANAR],
@@ -438,40 +582,69 @@ def trace_polylines(curves: IntersectionCurves) -> list[np.ndarray]:
         its first point at the end. Where more than two segments meet
         (curves crossing or touching), polylines end there.
     """
-    segs = np.unique(np.sort(curves.segments, axis=1), axis=0)
-    n_points = len(curves.points)
+    segs = unique_rows(np.sort(curves.segments, axis=1))[0]
     if len(segs) == 0:
         return []
-    ends = np.concatenate([segs[:, 0], segs[:, 1]])
-    other = np.concatenate([segs[:, 1], segs[:, 0]])
-    seg_id = np.concatenate([np.arange(len(segs)), np.arange(len(segs))])
-    order = np.argsort(ends, kind="stable")
-    start = np.searchsorted(ends[order], np.arange(n_points + 1))
-    degree = np.diff(start)
-    used = np.zeros(len(segs), bool)
-    lines = []
+    path, bounds = _walk_polylines(segs, len(curves.points))
+    return np.split(path, bounds[1:-1])
 
-    def walk(point: int) -> list[int]:
-        path = [point]
+
+@njit(cache=True)
+def _walk(point, segs, start, order, degree, used, path, n):
+    """Follow unused segments from ``point`` through points of degree 2; append to ``path`` from ``n`` on."""
+    first = point
+    path[n] = point
+    n += 1
+    steps = 0
+    while True:
+        nxt = -1
+        if degree[point] == 2 or steps == 0:
+            for j in range(start[point], start[point + 1]):
+                s = order[j] % segs.shape[0]
+                if not used[s]:
+                    used[s] = True
+                    nxt = segs[s, 1] if segs[s, 0] == point else segs[s, 0]
+                    break
+        if nxt < 0:
+            return n
+        path[n] = nxt
+        n += 1
+        steps += 1
+        point = nxt
+        if point == first:
+            return n
+
+
+@njit(cache=True)
+def _walk_polylines(segs, n_points):
+    """Polylines through the segments (S, 2): the points of all in order (flat) and the offsets of each."""
+    n_seg = segs.shape[0]
+    ends = np.concatenate((segs[:, 0], segs[:, 1]))
+    order = np.argsort(ends, kind="mergesort")  # entry j is segment j % S
+    start = np.zeros(n_points + 1, np.int64)
+    for j in range(2 * n_seg):
+        start[ends[j] + 1] += 1
+    degree = start[1:].copy()
+    for v in range(n_points):
+        start[v + 1] += start[v]
+    used = np.zeros(n_seg, np.bool_)
+    path = np.empty(2 * n_seg + n_seg, np.int64)
+    bounds = [0]
+    n = 0
+    for v in range(n_points):  # open polylines start where they end
+        if degree[v] == 2 or degree[v] == 0:
+            continue
         while True:
-            q = None
-            if degree[point] == 2 or len(path) == 1:
-                for j in order[start[point]:start[point + 1]]:
-                    if not used[seg_id[j]]:
-                        q, s = other[j], seg_id[j]
-                        break
-            if q is None:
-                return path
-            used[s] = True
-            path.append(int(q))
-            point = int(q)
-            if point == path[0]:
-                return path
-
-    for first in np.flatnonzero((degree != 2) & (degree > 0)):  # open polylines start where they end
-        while any(not used[seg_id[j]] for j in order[start[first]:start[first + 1]]):
-            lines.append(np.array(walk(int(first)), dtype=np.int64))
-    for s in range(len(segs)):  # closed loops
+            free = False
+            for j in range(start[v], start[v + 1]):
+                if not used[order[j] % n_seg]:
+                    free = True
+            if not free:
+                break
+            n = _walk(v, segs, start, order, degree, used, path, n)
+            bounds.append(n)
+    for s in range(n_seg):  # closed loops
         if not used[s]:
-            lines.append(np.array(walk(int(segs[s, 0])), dtype=np.int64))
-    return lines
+            n = _walk(segs[s, 0], segs, start, order, degree, used, path, n)
+            bounds.append(n)
+    return path[:n].copy(), np.array(bounds, np.int64)

@@ -23,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit, prange
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
@@ -32,8 +33,9 @@ from pverosion.kernels.intersection_curves import (
     canonical_vertices,
     intersection_curves,
     trace_polylines,
+    unique_rows,
 )
-from pverosion.kernels.mesh_query import TriangleIndex, ray_winding
+from pverosion.kernels.mesh_query import ray_winding
 from pverosion.kernels.polygon_cut import cut_triangles
 from pverosion.kernels.topology import boundary_edges
 from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh
@@ -91,19 +93,16 @@ def _edge_keys(canon: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.minimum(a, b) * n + np.maximum(a, b)
 
 
-def _face_points(pts: np.ndarray, fcs: np.ndarray, canon: np.ndarray, curves: IntersectionCurves):
-    """Every (face, curve point, location on the face) to cut with, sorted by face, and the face segments.
+def _face_points(fcs: np.ndarray, canon: np.ndarray, curves: IntersectionCurves):
+    """Every (face, curve point, location on the face) to cut with, sorted by face and point.
 
     The ends of each face's own segments, plus the curve points inside any
     edge of the face (also those a neighbour's segment put there), so that
     no cut leaves a T-junction.
     """
-    seg_face = np.concatenate([curves.pairs[:, 0], curves.pairs[:, 1]])
-    seg_points = np.concatenate([curves.segments, curves.segments])
-    seg_loc = np.concatenate([curves.locations[:, :, 0], curves.locations[:, :, 1]])
-    face = np.repeat(seg_face, 2)
-    point = seg_points.ravel()
-    loc = seg_loc.ravel()
+    face = np.repeat(np.concatenate([curves.pairs[:, 0], curves.pairs[:, 1]]), 2)
+    point = np.concatenate([curves.segments, curves.segments]).ravel()
+    loc = np.concatenate([curves.locations[:, :, 0], curves.locations[:, :, 1]]).ravel()
     # curve points inside edges go to every face with that edge
     keys = _edge_keys(canon, fcs)
     on_edge = (loc >= 3) & (loc < 6)
@@ -111,24 +110,13 @@ def _face_points(pts: np.ndarray, fcs: np.ndarray, canon: np.ndarray, curves: In
     flat = keys.ravel()
     order = np.argsort(flat, kind="stable")
     lo = np.searchsorted(flat[order], edge_key, side="left")
-    hi = np.searchsorted(flat[order], edge_key, side="right")
-    count = hi - lo
+    count = np.searchsorted(flat[order], edge_key, side="right") - lo
     rows = np.repeat(np.arange(len(edge_key)), count)
-    slots = order[np.concatenate([np.arange(a, b) for a, b in zip(lo, hi)])] if len(rows) else np.zeros(0, np.int64)
-    extra_face, extra_loc = slots // 3, 3 + slots % 3
-    face = np.concatenate([face, extra_face])
+    slots = order[np.repeat(lo - np.cumsum(count) + count, count) + np.arange(int(count.sum()))]
+    face = np.concatenate([face, slots // 3])
     point = np.concatenate([point, point[on_edge][rows]])
-    loc = np.concatenate([loc, extra_loc])
-    table = np.unique(np.stack([face, point, loc], axis=1), axis=0)
-    return table, seg_face, seg_points
-
-
-def _project(pts: np.ndarray, tri: np.ndarray) -> tuple[int, bool]:
-    """Axis to drop for a face (its normal's largest component) and whether the 2-D corners come out clockwise."""
-    p0, p1, p2 = pts[tri]
-    normal = np.cross(p1 - p0, p2 - p0)
-    axis = int(np.argmax(np.abs(normal)))
-    return axis, normal[axis] < 0.0
+    loc = np.concatenate([loc, 3 + slots % 3])
+    return unique_rows(np.stack([face, point, loc], axis=1))[0]
 
 
 def _cut_faces(pts, fcs, canon, curves):
@@ -137,64 +125,64 @@ def _cut_faces(pts, fcs, canon, curves):
     n_vertices = len(pts)
     keys = curves.point_keys
     point_id = np.where(keys[:, 0] == VERTEX, keys[:, 1], n_vertices + np.arange(len(keys)))
-    table, seg_face, seg_points = _face_points(pts, fcs, canon, curves)
-    cut = np.unique(table[:, 0])
+    table = _face_points(fcs, canon, curves)
+    cut, first_row = np.unique(table[:, 0], return_index=True)
     whole = np.ones(len(fcs), bool)
     whole[cut] = False
     kept = np.flatnonzero(whole)
-    out_faces = [canon[fcs[kept]]]
-    out_source = [kept]
     if len(cut) == 0:
-        return np.concatenate(out_faces), np.concatenate(out_source), point_id
+        return canon[fcs[kept]], kept, point_id
     # local points of every cut face: its 3 corners, then its curve points that are not corners
-    xy, location, param, point_start = [], [], [], [0]
-    segs, seg_start = [], [0]
-    rows_start = np.searchsorted(table[:, 0], cut)
-    rows_stop = np.searchsorted(table[:, 0], cut, side="right")
-    seg_order = np.argsort(seg_face, kind="stable")
-    s_start = np.searchsorted(seg_face[seg_order], cut)
-    s_stop = np.searchsorted(seg_face[seg_order], cut, side="right")
-    local_ids = []
-    for i, f in enumerate(cut):
-        tri = fcs[f]
-        rows = table[rows_start[i]:rows_stop[i]]
-        others = rows[rows[:, 2] >= 3]
-        axis, flip = _project(pts, tri)
-        cols = [(axis + 1) % 3, (axis + 2) % 3]
-        if flip:
-            cols = cols[::-1]
-        corner_xyz = pts[tri]
-        xyz = np.concatenate([corner_xyz, curves.points[others[:, 1]]])
-        xy.append(xyz[:, cols])
-        location.append(np.concatenate([[0, 1, 2], others[:, 2]]))
-        t = np.zeros(len(xyz))
-        edge = (others[:, 2] >= 3) & (others[:, 2] < 6)
-        if edge.any():
-            k = others[edge, 2] - 3
-            a, b = corner_xyz[k], corner_xyz[(k + 1) % 3]
-            d = b - a
-            t[3:][edge] = np.einsum("ij,ij->i", xyz[3:][edge] - a, d) / np.einsum("ij,ij->i", d, d)
-        param.append(t)
-        point_start.append(point_start[-1] + len(xyz))
-        # curve point -> local index (corners by their location)
-        local = {int(p): 3 + j for j, p in enumerate(others[:, 1])}
-        for p, loc in rows[rows[:, 2] < 3][:, 1:]:
-            local[int(p)] = int(loc)
-        face_segs = seg_points[seg_order[s_start[i]:s_stop[i]]]
-        segs.append(np.array([[local[int(a)], local[int(b)]] for a, b in face_segs], dtype=np.int64).reshape(-1, 2))
-        seg_start.append(seg_start[-1] + len(face_segs))
-        ids = np.concatenate([canon[tri], point_id[others[:, 1]]])
-        local_ids.append(ids)
-    triangles, _, tri_start = cut_triangles(np.concatenate(xy), np.concatenate(location).astype(np.int64),
-                                            np.concatenate(param), np.asarray(point_start, np.int64),
-                                            np.concatenate(segs), np.asarray(seg_start, np.int64))
-    for i, f in enumerate(cut):
-        local = triangles[tri_start[i]:tri_start[i + 1]]
-        if len(local) == 0:
-            raise RuntimeError(f"face {f} could not be cut along its intersection segments")
-        out_faces.append(local_ids[i][local])
-        out_source.append(np.full(len(local), f))
-    return np.concatenate(out_faces), np.concatenate(out_source), point_id
+    row_face = np.searchsorted(cut, table[:, 0])  # index of each row's face in ``cut``
+    other = table[:, 2] >= 3
+    n_other = np.bincount(row_face[other], minlength=len(cut))
+    point_start = np.zeros(len(cut) + 1, np.int64)
+    np.cumsum(3 + n_other, out=point_start[1:])
+    before = np.cumsum(other) - other  # other rows before each row
+    local = np.where(other, 3 + before - before[first_row][row_face], table[:, 2])  # each row's point on its face
+    tri = pts[fcs[cut]]  # (C, 3, 3)
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    axis = np.argmax(np.abs(normal), axis=1)
+    flip = normal[np.arange(len(cut)), axis] < 0.0
+    cols = np.stack([(axis + 1) % 3, (axis + 2) % 3], axis=1)
+    cols[flip] = cols[flip][:, ::-1]
+    xyz = np.empty((point_start[-1], 3))
+    corner_rows = (point_start[:-1, None] + np.arange(3)).ravel()
+    xyz[corner_rows] = tri.reshape(-1, 3)
+    other_rows = point_start[row_face[other]] + local[other]
+    xyz[other_rows] = curves.points[table[other, 1]]
+    row_owner = np.repeat(np.arange(len(cut)), 3 + n_other)
+    xy = np.take_along_axis(xyz, cols[row_owner], axis=1)
+    location = np.empty(point_start[-1], np.int64)
+    location[corner_rows] = np.tile([0, 1, 2], len(cut))
+    location[other_rows] = table[other, 2]
+    param = np.zeros(point_start[-1])
+    edge = other & (table[:, 2] < 6)
+    k = table[edge, 2] - 3
+    owner = row_face[edge]
+    a, b = tri[owner, k], tri[owner, (k + 1) % 3]
+    param[point_start[owner] + local[edge]] = (np.einsum("ij,ij->i", curves.points[table[edge, 1]] - a, b - a)
+                                               / np.einsum("ij,ij->i", b - a, b - a))
+    # segments in local indices: look every end up as (face, point) in the table
+    seg_face = np.concatenate([curves.pairs[:, 0], curves.pairs[:, 1]])
+    seg_points = np.concatenate([curves.segments, curves.segments])
+    order = np.argsort(seg_face, kind="stable")
+    seg_face, seg_points = seg_face[order], seg_points[order]
+    n_points = len(curves.points)
+    row_key = table[:, 0] * n_points + table[:, 1]  # sorted: the table is sorted by face, then point
+    ends = np.searchsorted(row_key, seg_face[:, None] * n_points + seg_points)
+    segments = local[ends]
+    seg_start = np.searchsorted(seg_face, np.r_[cut, np.iinfo(np.int64).max])
+    triangles, _, tri_start = cut_triangles(xy, location, param, point_start, segments, seg_start)
+    counts = np.diff(tri_start)
+    if np.any(counts == 0):
+        raise RuntimeError(f"face {cut[np.argmax(counts == 0)]} could not be cut along its intersection segments")
+    ids = np.empty(point_start[-1], np.int64)
+    ids[corner_rows] = canon[fcs[cut]].ravel()
+    ids[other_rows] = point_id[table[other, 1]]
+    tri_owner = np.repeat(np.arange(len(cut)), counts)
+    pieces = ids[point_start[tri_owner][:, None] + triangles]
+    return (np.concatenate([canon[fcs[kept]], pieces]), np.concatenate([kept, cut[tri_owner]]), point_id)
 
 
 # --- patches and their winding numbers ---------------------------------------------------------------------------
@@ -206,7 +194,8 @@ def _patches(faces: np.ndarray, n_vertices: int, cut_edges: np.ndarray) -> np.nd
     b = np.roll(faces, -1, axis=1)
     key = (np.minimum(a, b) * n_vertices + np.maximum(a, b)).ravel()
     owner = np.repeat(np.arange(len(faces)), 3)
-    free = ~np.isin(key, cut_edges)
+    at = np.minimum(np.searchsorted(cut_edges, key), max(len(cut_edges) - 1, 0))
+    free = cut_edges[at] != key if len(cut_edges) else np.ones(len(key), bool)
     key, owner = key[free], owner[free]
     order = np.argsort(key, kind="stable")
     key, owner = key[order], owner[order]
@@ -216,41 +205,83 @@ def _patches(faces: np.ndarray, n_vertices: int, cut_edges: np.ndarray) -> np.nd
     return connected_components(graph, directed=False)[1]
 
 
-class _Rays:
-    """Winding numbers by rays along x, y or z over one mesh (an index per axis, built when first needed)."""
-
-    def __init__(self, points: np.ndarray, faces: np.ndarray, group: np.ndarray) -> None:
-        self.points, self.faces, self.group = points, faces, group
-        self._index: dict[int, TriangleIndex] = {}
-
-    def winding(self, p: np.ndarray, axis: int, skip: int, group: int) -> int:
-        """Winding number at ``p`` along +axis, leaving out face ``skip``, of the faces of ``group`` (< 0: all)."""
-        perm = [(axis + 1) % 3, (axis + 2) % 3, axis]  # cyclic: the faces keep their orientation
-        if axis not in self._index:
-            self._index[axis] = TriangleIndex.build(self.points[:, perm], self.faces)
-        ix = self._index[axis]
-        return int(ray_winding(p[perm], ix.points, ix.faces, ix.lo, ix.size, ix.dims, ix.start2, ix.items2, skip,
-                               self.group, group))
+@njit(cache=True, parallel=True)
+def _ray_windings(queries, skip, group, points, faces, lo, size, dims, start2, items2, face_group):
+    """:func:`ray_winding` of every query point (Q, 3) (coordinates already permuted for the ray's axis)."""
+    out = np.empty(queries.shape[0], np.int64)
+    for q in prange(queries.shape[0]):
+        out[q] = ray_winding(queries[q], points, faces, lo, size, dims, start2, items2, skip[q], face_group, group[q])
+    return out
 
 
-def _select(points, faces, source_group, patch, keep_rule) -> tuple[np.ndarray, np.ndarray]:
-    """Whether each face stays (F,) and whether it turns (F,), decided once per patch by ``keep_rule``."""
+@njit(cache=True)
+def _columns(points, faces):
+    """Grid of (x, y) columns over the faces' boxes, as :class:`TriangleIndex` builds for its +z ray:
+    (lower corner, column edge, columns per axis (3,), CSR offsets, faces)."""
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    edge = 0.0
+    for f in range(faces.shape[0]):
+        for k in range(3):
+            for a in range(3):
+                lo[a] = min(lo[a], points[faces[f, k], a])
+                hi[a] = max(hi[a], points[faces[f, k], a])
+        edge += np.sqrt((points[faces[f, 1], 0] - points[faces[f, 0], 0]) ** 2
+                        + (points[faces[f, 1], 1] - points[faces[f, 0], 1]) ** 2
+                        + (points[faces[f, 1], 2] - points[faces[f, 0], 2]) ** 2)
+    size = max(2.0 * edge / max(faces.shape[0], 1), max(hi[0] - lo[0], hi[1] - lo[1], 1e-12) / 256.0)
+    dims = np.ones(3, np.int64)
+    for a in range(2):
+        dims[a] = max(int(np.ceil(max(hi[a] - lo[a], 1e-12) / size)), 1)
+    box = np.empty((faces.shape[0], 4), np.int64)
+    counts = np.zeros(dims[0] * dims[1] + 1, np.int64)
+    for f in range(faces.shape[0]):
+        for a in range(2):
+            x0 = min(points[faces[f, 0], a], points[faces[f, 1], a], points[faces[f, 2], a])
+            x1 = max(points[faces[f, 0], a], points[faces[f, 1], a], points[faces[f, 2], a])
+            box[f, a] = min(max(int((x0 - lo[a]) / size), 0), dims[a] - 1)
+            box[f, 2 + a] = min(max(int((x1 - lo[a]) / size), 0), dims[a] - 1)
+        for j in range(box[f, 1], box[f, 3] + 1):
+            for i in range(box[f, 0], box[f, 2] + 1):
+                counts[1 + i + dims[0] * j] += 1
+    start = np.cumsum(counts)
+    fill = start[:-1].copy()
+    items = np.empty(start[-1], np.int64)
+    for f in range(faces.shape[0]):
+        for j in range(box[f, 1], box[f, 3] + 1):
+            for i in range(box[f, 0], box[f, 2] + 1):
+                items[fill[i + dims[0] * j]] = f
+                fill[i + dims[0] * j] += 1
+    return lo, size, dims, start, items
+
+
+def _patch_windings(points, faces, face_group, reps, groups) -> tuple[np.ndarray, np.ndarray]:
+    """Winding numbers of the faces of ``groups`` (< 0: all) at the centroids of the faces ``reps``, leaving
+    those faces out, by rays along the axis their normals point most along (z where they are not vertical),
+    and whether each rep faces down that axis."""
+    tri = points[faces[reps]]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    axis = np.where(normal[:, 2] != 0.0, 2, np.argmax(np.abs(normal), axis=1))
+    centre = tri.mean(axis=1)
+    out = np.zeros(len(reps), np.int64)
+    for a in np.unique(axis):
+        perm = [(a + 1) % 3, (a + 2) % 3, a]  # cyclic: the faces keep their orientation
+        turned = np.ascontiguousarray(points[:, perm])
+        lo, size, dims, start, items = _columns(turned, faces)
+        rows = np.flatnonzero(axis == a)
+        out[rows] = _ray_windings(np.ascontiguousarray(centre[rows][:, perm]), reps[rows], groups[rows], turned,
+                                  faces, lo, size, dims, start, items, face_group)
+    return out, normal[np.arange(len(reps)), axis] < 0.0
+
+
+def _representatives(points, faces, patch) -> np.ndarray:
+    """A face of every patch, in patch order: the one whose normal has the largest z component (its centroid
+    is away from the patch's rim on a coarse patch; rays along z need no second index)."""
     tri = points[faces]
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    area = np.linalg.norm(normal, axis=1)
-    rays = _Rays(points, faces, source_group)
-    keep = np.zeros(len(faces), bool)
-    turn = np.zeros(len(faces), bool)
-    order = np.lexsort((-area, patch))
-    first = order[np.r_[True, patch[order][1:] != patch[order][:-1]]]  # largest face of every patch
-    for f in first:
-        axis = int(np.argmax(np.abs(normal[f])))
-        centre = tri[f].mean(axis=0)
-        stays, turns = keep_rule(rays, f, centre, axis, normal[f, axis] < 0.0)
-        members = patch == patch[f]
-        keep[members] = stays
-        turn[members] = turns
-    return keep, turn
+    score = np.abs(normal[:, 2]) + 1e-3 * np.linalg.norm(normal, axis=1)
+    order = np.lexsort((-score, patch))
+    return order[np.r_[True, patch[order][1:] != patch[order][:-1]]]
 
 
 # --- front ends --------------------------------------------------------------------------------------------------
@@ -261,7 +292,8 @@ def _check_closed(faces: np.ndarray, n_vertices: int, what: str) -> None:
         raise InvalidMeshError(f"{what} must be closed: it has boundary edges (fill its holes first)")
 
 
-def _corefine(pts, fcs, group, keep_rule) -> RepairResult:
+def _corefine(pts, fcs, group, operation) -> RepairResult:
+    """Cut the mesh along its intersection curves and keep the patches ``operation`` (None: repair) wants."""
     curves = intersection_curves(pts, fcs, group=group)
     canon = canonical_vertices(pts)
     faces, source, point_id = _cut_faces(pts, fcs, canon, curves)
@@ -271,7 +303,17 @@ def _corefine(pts, fcs, group, keep_rule) -> RepairResult:
     cut_edges = np.unique(seg[:, 0] * n_all + seg[:, 1])
     patch = _patches(faces, n_all, cut_edges)
     source_group = np.zeros(len(faces), np.int64) if group is None else np.asarray(group)[source]
-    keep, turn = _select(all_points, faces, source_group, patch, keep_rule)
+    reps = _representatives(all_points, faces, patch)
+    own = source_group[reps]
+    if operation is None:
+        # the winding number just in front of the patch must be 0
+        winding, down = _patch_windings(all_points, faces, source_group, reps, np.full(len(reps), -1))
+        stays, turns = winding - down == 0, np.zeros(len(reps), bool)
+    else:
+        rule = np.array(_KEEP[operation])  # (operand, (target winding of the other, turn))
+        winding, _ = _patch_windings(all_points, faces, source_group, reps, 1 - own)
+        stays, turns = winding == rule[own, 0], rule[own, 1].astype(bool)
+    keep, turn = stays[patch], turns[patch]
     faces = np.where(turn[:, None], faces[:, ::-1], faces)[keep]
     source = source[keep]
     used = np.unique(faces)
@@ -309,12 +351,7 @@ def repair_intersections(points, faces) -> RepairResult:
     """
     pts, fcs = as_triangle_mesh(points, faces)
     _check_closed(fcs, len(pts), "the mesh")
-
-    def front_is_outside(rays, f, centre, axis, faces_down):
-        w_front = rays.winding(centre, axis, f, -1) - int(faces_down)
-        return w_front == 0, False
-
-    return _corefine(pts, fcs, None, front_is_outside)
+    return _corefine(pts, fcs, None, None)
 
 
 def boolean_meshes(points_a, faces_a, points_b, faces_b, operation: str) -> RepairResult:
@@ -350,11 +387,4 @@ def boolean_meshes(points_a, faces_a, points_b, faces_b, operation: str) -> Repa
     pts = np.concatenate([pa, pb])
     fcs = np.concatenate([fa, fb + len(pa)])
     group = np.repeat([0, 1], [len(fa), len(fb)])
-    rule = _KEEP[operation]
-
-    def other_winding(rays, f, centre, axis, faces_down):
-        own = int(rays.group[f])
-        target, turns = rule[own]
-        return rays.winding(centre, axis, f, 1 - own) == target, turns
-
-    return _corefine(pts, fcs, group, other_winding)
+    return _corefine(pts, fcs, group, operation)
