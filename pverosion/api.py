@@ -80,6 +80,7 @@ def weather(
     min_edge_ratio: float = 0.1,
     check_every: int = 10,
     orientation: str = "outward",
+    repair: str = "retry",
 ) -> pv.PolyData:
     """Curvature-driven weathering (Skorkovská et al. 2019, §3.3).
 
@@ -109,6 +110,10 @@ def weather(
     check_every : int, default: 10
         Self-intersection guard period; 0 switches the guard off.
     orientation : {"outward", "inward", "keep"}, default: "outward"
+    repair : {"retry", "topology", "off"}, default: "retry"
+        When the surface meets itself: roll back and shorten the steps there,
+        cut the mesh along the intersection curves and go on (a wall eroded
+        through opens a hole), or nothing.
 
     Returns
     -------
@@ -127,7 +132,8 @@ def weather(
     True
     """
     options = {"iterations": iterations, "power": power, "step_divisor": step_divisor, "direction": direction,
-               "min_edge_ratio": min_edge_ratio, "check_every": check_every, "orientation": orientation}
+               "min_edge_ratio": min_edge_ratio, "check_every": check_every, "orientation": orientation,
+               "repair": repair}
     if isinstance(erodibility, str):
         return apply_filter(Weathering, mesh, erodibility_array=erodibility, **options)
     return apply_filter(Weathering, mesh, erodibility=erodibility, **options)

@@ -22,6 +22,7 @@ from pverosion.filters.materials import parse_numbers
 from pverosion.filters.weathering import MeshSolverFilter, weathering_output
 from pverosion.kernels.geometry import average_edge_length
 from pverosion.kernels.hydraulic_erosion import MODELS, HydraulicSolver, ShearParameters
+from pverosion.kernels.mesh_evolution import REPAIR_MODES
 from pverosion.kernels.orientation import ORIENTATIONS
 from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters
 
@@ -109,6 +110,8 @@ class HydraulicErosion(MeshSolverFilter):
         Param("min_edge_ratio", 0.1, "Collapse edges shorter than this times e_avg among moved vertices (0: off).",
               minimum=0.0, maximum=0.99),
         Param("check_every", 10, "Self-intersection guard period in iterations (0: off).", minimum=0),
+        Param("repair", "retry", "When the surface meets itself: roll back and shorten the steps there (retry), "
+              "cut it along the intersection curves and go on (topology), or nothing (off).", choices=REPAIR_MODES),
         Param("orientation", "outward", "Face orientation to use (outward: the fluid is outside the mesh).",
               choices=ORIENTATIONS),
         Param("seed", 0, "Seed of the fluid's random numbers.", minimum=0),
@@ -138,7 +141,7 @@ class HydraulicErosion(MeshSolverFilter):
             shear=ShearParameters(**{name: self.get_option(name) for name in _SHEAR}),
             erodibility=self._erodibility_for(inp), min_edge_ratio=self.get_option("min_edge_ratio"),
             check_every=self.get_option("check_every"), orientation=self.get_option("orientation"),
-            seed=self.get_option("seed"))
+            repair=self.get_option("repair"), seed=self.get_option("seed"))
 
     def _fill(self, solver: HydraulicSolver, inp, out) -> None:
         mesh = vtkPolyData()

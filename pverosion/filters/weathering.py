@@ -14,7 +14,7 @@ from pverosion.filters.base import (
     set_field_value,
     set_point_array,
 )
-from pverosion.kernels.mesh_evolution import GuardedMeshSolver
+from pverosion.kernels.mesh_evolution import REPAIR_MODES, GuardedMeshSolver
 from pverosion.kernels.orientation import ORIENTATIONS
 from pverosion.kernels.weathering import DIRECTIONS, Erodibility, WeatheringSolver
 
@@ -57,6 +57,7 @@ def weathering_output(solver: GuardedMeshSolver, source, out, *, prefix: str = "
         set_field_value(out, f"{prefix}_{name}", series)
     set_field_value(out, "retries", solver.retries)
     set_field_value(out, "frozen_vertices", solver.frozen)
+    set_field_value(out, "topology_repairs", solver.repairs)
 
 
 class MeshSolverFilter(TimeSteppedFilter):
@@ -141,6 +142,8 @@ class Weathering(MeshSolverFilter):
         Param("min_edge_ratio", 0.1, "Collapse edges shorter than this times e_avg after every step (0: off).",
               minimum=0.0, maximum=0.99),
         Param("check_every", 10, "Self-intersection guard period in steps (0: off).", minimum=0),
+        Param("repair", "retry", "When the surface meets itself: roll back and shorten the steps there (retry), "
+              "cut it along the intersection curves and go on (topology), or nothing (off).", choices=REPAIR_MODES),
         Param("erodibility_array", "", "Input point array used as per-vertex erodibility (empty: uniform)."),
         Param("orientation", "outward", "Face orientation to use (outward: convex regions erode).",
               choices=ORIENTATIONS),
@@ -158,6 +161,7 @@ class Weathering(MeshSolverFilter):
             min_edge_ratio=self.get_option("min_edge_ratio"),
             check_every=self.get_option("check_every"),
             orientation=self.get_option("orientation"),
+            repair=self.get_option("repair"),
         )
 
     def _fill(self, solver: WeatheringSolver, inp, out) -> None:

@@ -356,7 +356,7 @@ class HydraulicSolver(GuardedMeshSolver):
         Constants of the sediment model.
     erodibility : array_like (V,), callable, MaterialField or None
         Multiplier of the erosion (see :class:`~pverosion.kernels.weathering.WeatheringSolver`).
-    min_edge_ratio, check_every, max_halvings, orientation
+    min_edge_ratio, check_every, max_halvings, orientation, repair
         Mesh improvement and self-intersection guard
         (:class:`~pverosion.kernels.mesh_evolution.GuardedMeshSolver`).
     seed : int, default: 0
@@ -403,6 +403,7 @@ class HydraulicSolver(GuardedMeshSolver):
         check_every: int = 10,
         max_halvings: int = 4,
         orientation: str = "outward",
+        repair: str = "retry",
         seed: int = 0,
     ) -> None:
         if model not in MODELS:
@@ -417,7 +418,7 @@ class HydraulicSolver(GuardedMeshSolver):
             raise TypeError(f"fluid must be FluidParameters; got {type(fluid).__name__}")
         emitters = tuple(emitters)
         super().__init__(points, faces, min_edge_ratio=min_edge_ratio, check_every=check_every,
-                         max_halvings=max_halvings, orientation=orientation)
+                         max_halvings=max_halvings, orientation=orientation, repair=repair)
         self.model = model
         self.power = float(power)
         self.step_divisor = float(step_divisor)
@@ -458,6 +459,12 @@ class HydraulicSolver(GuardedMeshSolver):
     def _after_collapse(self, kept: np.ndarray) -> None:
         self.pending = self.pending[kept]
         self.f_distance = self.f_distance[kept]
+
+    def _after_repair(self, source: np.ndarray, donor: np.ndarray) -> None:
+        # sediment owed to a vertex stays with it; the new vertices on the curves owe nothing
+        self.pending = np.where(source >= 0, self.pending[donor], 0.0)
+        self.f_distance = self.f_distance[donor]
+        self.fluid.set_mesh(self.points, self.faces)
 
     def _extra_state(self):
         return (self.fluid.state(), self.pending.copy(), self.f_distance.copy(), self.colliding.copy(),

@@ -30,7 +30,6 @@ segment is the step of TNOIT to the neighbouring triangle across the edge
 from __future__ import annotations
 
 from dataclasses import dataclass
-from itertools import pairwise
 
 import numpy as np
 from numba import njit, prange
@@ -463,22 +462,26 @@ def _split_at_triple_points(pts, fcs, keys, coords, segments, pairs, locations):
     split_point = inverse[len(keys):]
     split = np.zeros(n_seg, bool)
     split[split_seg] = True
-    out_seg, out_pairs, out_loc = [segments[~split]], [pairs[~split]], [locations[~split]]
-    order = np.argsort(split_seg, kind="stable")
-    split_seg, split_point = split_seg[order], split_point[order]
-    bounds = np.flatnonzero(np.r_[True, split_seg[1:] != split_seg[:-1], True])
-    for lo, hi in pairwise(bounds):
-        s = split_seg[lo]
-        a, b = segments[s]
-        middle = np.unique(split_point[lo:hi])
-        along = (all_coords[middle] - all_coords[a]) @ (all_coords[b] - all_coords[a])
-        chain = np.r_[a, middle[np.argsort(along)], b]
-        loc = np.full((len(chain) - 1, 2, 2), _INSIDE, np.int64)
-        loc[0, 0] = locations[s, 0]
-        loc[-1, 1] = locations[s, 1]
-        out_seg.append(np.stack([chain[:-1], chain[1:]], axis=1))
-        out_pairs.append(np.repeat(pairs[s:s + 1], len(chain) - 1, axis=0))
-        out_loc.append(loc)
+    # every split segment becomes the chain of its crossing points, in order along it
+    s_idx, p_idx = unique_rows(np.stack([split_seg, split_point], axis=1))[0].T
+    seg_a, seg_b = segments[s_idx, 0], segments[s_idx, 1]
+    along = np.einsum("ij,ij->i", all_coords[p_idx] - all_coords[seg_a], all_coords[seg_b] - all_coords[seg_a])
+    order = np.lexsort((along, s_idx))
+    s_idx, p_idx = s_idx[order], p_idx[order]
+    first = np.r_[True, s_idx[1:] != s_idx[:-1]]
+    last = np.r_[s_idx[1:] != s_idx[:-1], True]
+    piece_start = np.where(first, segments[s_idx, 0], np.r_[-1, p_idx[:-1]])
+    pieces = np.concatenate([np.stack([piece_start, p_idx], axis=1),
+                             np.stack([p_idx[last], segments[s_idx[last], 1]], axis=1)])
+    owner = np.concatenate([s_idx, s_idx[last]])
+    piece_loc = np.full((len(pieces), 2, 2), _INSIDE, np.int64)
+    head = np.flatnonzero(first)
+    piece_loc[head, 0] = locations[s_idx[head], 0]  # the first piece keeps the segment's first end
+    tail = len(s_idx) + np.arange(int(last.sum()))
+    piece_loc[tail, 1] = locations[owner[tail], 1]  # the last piece keeps its second end
+    out_seg = [segments[~split], pieces]
+    out_pairs = [pairs[~split], pairs[owner]]
+    out_loc = [locations[~split], piece_loc]
     return all_keys, all_coords, np.concatenate(out_seg), np.concatenate(out_pairs), np.concatenate(out_loc)
 
 
@@ -536,8 +539,12 @@ def intersection_curves(points, faces, *, group=None) -> IntersectionCurves:
     (1, 0)
     """
     pts, fcs = as_triangle_mesh(points, faces)
+    return curves_of(pts, fcs, group, canonical_vertices(pts))
+
+
+def curves_of(pts: np.ndarray, fcs: np.ndarray, group, canon: np.ndarray) -> IntersectionCurves:
+    """:func:`intersection_curves` of a validated mesh whose :func:`canonical_vertices` are ``canon``."""
     pairs = candidate_pairs(pts, fcs, group=group)
-    canon = canonical_vertices(pts)
     status, keys, locs, cases = _classify_pairs(pts, fcs, canon, pairs)
     if np.any(status < 0):
         raise RuntimeError("inconsistent intersection of a face pair (the exact predicates should prevent this)")

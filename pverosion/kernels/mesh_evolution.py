@@ -23,6 +23,14 @@ vertices. Subclasses with more state than the mesh (a fluid, say) extend
 :meth:`GuardedMeshSolver._extra_state` and
 :meth:`GuardedMeshSolver._restore_extra`, so a rollback replays the same
 steps bit for bit.
+
+That is ``repair="retry"``. With ``repair="topology"`` the guard instead
+accepts that two parts of the surface met (erosion pierced a thin wall,
+deposition merged two lobes): it cuts the mesh along the intersection curves
+and keeps the boundary of the region of winding number >= 1
+(:func:`pverosion.kernels.mesh_repair.repair_intersections`), which may
+open holes or split the mesh into pieces, and the run goes on from there
+(``repairs`` counts them). ``repair="off"`` leaves intersections in place.
 """
 
 from __future__ import annotations
@@ -42,12 +50,16 @@ from pverosion.kernels._scatter import CHUNKS, chunk_range
 from pverosion.kernels.curvature import CurvatureOperator
 from pverosion.kernels.geometry import vertex_normals
 from pverosion.kernels.intersection import intersecting_faces, spatial_order
+from pverosion.kernels.mesh_repair import repair_intersections
 from pverosion.kernels.orientation import ORIENTATIONS, orient_faces
 from pverosion.kernels.remesh import collapse_short_edges, short_edge_candidates
 from pverosion.kernels.topology import edge_topology, one_ring
 from pverosion.kernels.validation import as_triangle_mesh
 
-__all__ = ["GuardedMeshSolver", "volume_area"]
+__all__ = ["REPAIR_MODES", "GuardedMeshSolver", "volume_area"]
+
+REPAIR_MODES = ("retry", "topology", "off")
+"""Accepted values of the ``repair`` option."""
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
@@ -101,6 +113,10 @@ class GuardedMeshSolver:
         Freeze a vertex whose displacement had to be halved more than this
         many times.
     orientation : {"outward", "inward", "keep"}, default: "outward"
+    repair : {"retry", "topology", "off"}, default: "retry"
+        What the guard does when the surface meets itself: roll back and
+        shorten the steps there, cut the mesh along the intersection curves
+        and go on, or nothing (no guard).
 
     Attributes
     ----------
@@ -116,6 +132,8 @@ class GuardedMeshSolver:
         Steps done (time).
     retries : int
         Rollbacks made by the self-intersection guard.
+    repairs : int
+        Topology repairs made by the guard (``repair="topology"``).
     collapses : int
         Edges collapsed by the mesh improvement.
     profile : dict or None
@@ -137,6 +155,7 @@ class GuardedMeshSolver:
         check_every: int = 10,
         max_halvings: int = 4,
         orientation: str = "outward",
+        repair: str = "retry",
     ) -> None:
         pts, fcs = as_triangle_mesh(points, faces)
         if not (np.isfinite(min_edge_ratio) and 0.0 <= min_edge_ratio < 1.0):
@@ -147,8 +166,11 @@ class GuardedMeshSolver:
             raise ValueError(f"max_halvings must be an integer >= 0; got {max_halvings!r}")
         if orientation not in ORIENTATIONS:
             raise ValueError(f"orientation must be one of {ORIENTATIONS}; got {orientation!r}")
+        if repair not in REPAIR_MODES:
+            raise ValueError(f"repair must be one of {REPAIR_MODES}; got {repair!r}")
         self.min_edge_ratio = float(min_edge_ratio)
-        self.check_every = int(check_every)
+        self.repair = repair
+        self.check_every = 0 if repair == "off" else int(check_every)
         self.max_halvings = int(max_halvings)
         self.points = pts.copy()
         self.faces = orient_faces(pts, fcs, mode=orientation).faces
@@ -156,6 +178,7 @@ class GuardedMeshSolver:
         self.displacement = np.zeros_like(pts)
         self.step_count = 0
         self.retries = 0
+        self.repairs = 0
         self.collapses = 0
         self.profile: dict[str, list[float]] | None = None
         self._scale = np.ones(len(pts))  # displacement length factor per input vertex
@@ -358,6 +381,10 @@ class GuardedMeshSolver:
         if np.count_nonzero(hits) <= self._baseline:
             self._clean = self._snapshot()
             return True
+        if self.repair == "topology":
+            self._repair_topology()
+            self._clean = self._snapshot()
+            return True
         # halve the steps of the tangled faces' vertices and their two-ring neighbourhood
         near = np.zeros(len(self.points))
         near[self.faces[hits].ravel()] = 1.0
@@ -376,6 +403,29 @@ class GuardedMeshSolver:
         self.retries += 1
         self._restore(self._clean)
         return False
+
+    def _repair_topology(self) -> None:
+        """Cut the mesh along its intersection curves and keep the boundary of winding number >= 1."""
+        clock = time.perf_counter()
+        result = repair_intersections(self.points, self.faces)
+        source = result.source_vertex
+        # a new vertex (on a curve) takes the state of the first corner of the face it was cut from
+        donor = np.full(len(result.points), -1, np.int64)
+        donor[result.faces.ravel()] = self.faces[np.repeat(result.source_face, 3), 0]
+        old = np.where(source >= 0, source, donor)
+        self.points, self.faces = result.points, result.faces
+        self.ids = self.ids[old]
+        self.displacement = self.displacement[old]
+        self._after_repair(source, old)
+        self._build_topology()
+        self._baseline = 0
+        self.repairs += 1
+        self._lap("repair", clock)
+
+    def _after_repair(self, source: np.ndarray, donor: np.ndarray) -> None:
+        """Carry per-vertex state of a subclass over a topology repair: ``source`` (V',) is the old index of
+        every vertex (-1 for a new one on a curve), ``donor`` an old vertex next to it."""
+        self._after_collapse(donor)
 
     @property
     def frozen(self) -> int:

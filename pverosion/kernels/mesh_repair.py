@@ -24,14 +24,12 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, prange
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from pverosion.kernels.intersection_curves import (
     VERTEX,
     IntersectionCurves,
     canonical_vertices,
-    intersection_curves,
+    curves_of,
     trace_polylines,
     unique_rows,
 )
@@ -65,6 +63,9 @@ class RepairResult:
     source_face : numpy.ndarray, shape (F,), int64
         The input face each output face is (a piece of); for a Boolean
         operation, faces of B are numbered after those of A.
+    source_vertex : numpy.ndarray, shape (V,), int64
+        The input vertex each output vertex is (of the lowest index where
+        input vertices coincide), -1 for a new vertex on a curve.
     on_curve : numpy.ndarray, shape (V,), bool
         Vertices on an intersection curve.
     curves : IntersectionCurves
@@ -77,6 +78,7 @@ class RepairResult:
     points: np.ndarray
     faces: np.ndarray
     source_face: np.ndarray
+    source_vertex: np.ndarray
     on_curve: np.ndarray
     curves: IntersectionCurves
     polylines: list
@@ -188,6 +190,33 @@ def _cut_faces(pts, fcs, canon, curves):
 # --- patches and their winding numbers ---------------------------------------------------------------------------
 
 
+@njit(cache=True)
+def _root(parent, v):
+    while parent[v] != v:
+        parent[v] = parent[parent[v]]
+        v = parent[v]
+    return v
+
+
+@njit(cache=True)
+def _join_faces(owner_a, owner_b, n_faces):
+    """Connected components (labels 0..C-1 in order of first face) of faces joined by the given pairs."""
+    parent = np.arange(n_faces)
+    for k in range(owner_a.shape[0]):
+        a, b = _root(parent, owner_a[k]), _root(parent, owner_b[k])
+        if a != b:
+            parent[max(a, b)] = min(a, b)
+    label = np.full(n_faces, -1, np.int64)
+    count = 0
+    for f in range(n_faces):
+        r = _root(parent, f)
+        if label[r] < 0:
+            label[r] = count
+            count += 1
+        label[f] = label[r]
+    return label
+
+
 def _patches(faces: np.ndarray, n_vertices: int, cut_edges: np.ndarray) -> np.ndarray:
     """Patch of every face (F,): faces connected across edges that are not intersection edges."""
     a = faces
@@ -200,9 +229,7 @@ def _patches(faces: np.ndarray, n_vertices: int, cut_edges: np.ndarray) -> np.nd
     order = np.argsort(key, kind="stable")
     key, owner = key[order], owner[order]
     same = key[1:] == key[:-1]
-    graph = coo_matrix((np.ones(int(same.sum())), (owner[:-1][same], owner[1:][same])),
-                       shape=(len(faces), len(faces)))
-    return connected_components(graph, directed=False)[1]
+    return _join_faces(owner[:-1][same], owner[1:][same], len(faces))
 
 
 @njit(cache=True, parallel=True)
@@ -277,10 +304,10 @@ def _patch_windings(points, faces, face_group, reps, groups) -> tuple[np.ndarray
 def _representatives(points, faces, patch) -> np.ndarray:
     """A face of every patch, in patch order: the one whose normal has the largest z component (its centroid
     is away from the patch's rim on a coarse patch; rays along z need no second index)."""
-    tri = points[faces]
-    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    score = np.abs(normal[:, 2]) + 1e-3 * np.linalg.norm(normal, axis=1)
-    order = np.lexsort((-score, patch))
+    p0, p1, p2 = points[faces[:, 0]], points[faces[:, 1]], points[faces[:, 2]]
+    up = (p1[:, 0] - p0[:, 0]) * (p2[:, 1] - p0[:, 1]) - (p1[:, 1] - p0[:, 1]) * (p2[:, 0] - p0[:, 0])
+    size = np.abs(p1 - p0).sum(axis=1) * np.abs(p2 - p0).sum(axis=1)  # a stand-in for the area of vertical faces
+    order = np.lexsort((-(np.abs(up) + 1e-6 * size), patch))
     return order[np.r_[True, patch[order][1:] != patch[order][:-1]]]
 
 
@@ -294,8 +321,8 @@ def _check_closed(faces: np.ndarray, n_vertices: int, what: str) -> None:
 
 def _corefine(pts, fcs, group, operation) -> RepairResult:
     """Cut the mesh along its intersection curves and keep the patches ``operation`` (None: repair) wants."""
-    curves = intersection_curves(pts, fcs, group=group)
     canon = canonical_vertices(pts)
+    curves = curves_of(pts, fcs, group, canon)
     faces, source, point_id = _cut_faces(pts, fcs, canon, curves)
     all_points = np.concatenate([pts, curves.points])
     n_all = len(all_points)
@@ -323,6 +350,7 @@ def _corefine(pts, fcs, group, operation) -> RepairResult:
     on_curve[point_id] = True
     polylines = [new_index[point_id[line]] for line in trace_polylines(curves)]
     return RepairResult(points=all_points[used], faces=new_index[faces], source_face=source,
+                        source_vertex=np.where(used < len(pts), used, -1),
                         on_curve=on_curve[used], curves=curves, polylines=polylines)
 
 

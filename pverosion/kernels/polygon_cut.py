@@ -107,7 +107,7 @@ with a 5-point chord, 13 ms for 2000 points on one triangle).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from pverosion.kernels.predicates import orient2d
 
@@ -1001,7 +1001,7 @@ def cut_triangle(
 # ---------------------------------------------------------------------------
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def cut_triangles(
     xy: np.ndarray,
     location: np.ndarray,
@@ -1010,7 +1010,8 @@ def cut_triangles(
     segments: np.ndarray,
     segment_start: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Run :func:`cut_triangle` on many triangles stored in CSR form (in parallel).
+    """Run :func:`cut_triangle` on many triangles stored in CSR form (serially: every triangle allocates its
+    small work arrays, which makes threads contend more than they gain).
 
     Parameters
     ----------
@@ -1044,14 +1045,12 @@ def cut_triangles(
     n_tri = point_start.shape[0] - 1
     n_pts = xy.shape[0]
     n_seg = segments.shape[0]
-    # a tiling of a triangle by n points has at most 2 n - 5 triangles: every triangle gets that many slots
-    slot = np.zeros(max(n_tri, 0) + 1, dtype=np.int64)
+    cap = max(16, 2 * n_pts + 2 * n_seg)
+    tri_out = np.empty((cap, 3), dtype=np.int64)
+    reg_out = np.empty(cap, dtype=np.int64)
+    triangle_start = np.zeros(max(n_tri, 0) + 1, dtype=np.int64)
+    nt = 0
     for i in range(n_tri):
-        slot[i + 1] = slot[i] + max(2 * (point_start[i + 1] - point_start[i]), 0)
-    tri_all = np.empty((slot[n_tri], 3), dtype=np.int64)
-    reg_all = np.empty(slot[n_tri], dtype=np.int64)
-    count = np.zeros(max(n_tri, 0), dtype=np.int64)
-    for i in prange(n_tri):
         p0 = point_start[i]
         p1 = point_start[i + 1]
         s0 = segment_start[i]
@@ -1059,17 +1058,16 @@ def cut_triangles(
         if 0 <= p0 <= p1 <= n_pts and 0 <= s0 <= s1 <= n_seg:
             t, r = cut_triangle(xy[p0:p1], location[p0:p1], edge_param[p0:p1], segments[s0:s1])
             k = t.shape[0]
-            if k <= slot[i + 1] - slot[i]:
-                tri_all[slot[i]:slot[i] + k] = t
-                reg_all[slot[i]:slot[i] + k] = r
-                count[i] = k
-    triangle_start = np.zeros(max(n_tri, 0) + 1, dtype=np.int64)
-    for i in range(n_tri):
-        triangle_start[i + 1] = triangle_start[i] + count[i]
-    nt = triangle_start[n_tri] if n_tri > 0 else 0
-    tri_out = np.empty((nt, 3), dtype=np.int64)
-    reg_out = np.empty(nt, dtype=np.int64)
-    for i in range(n_tri):
-        tri_out[triangle_start[i]:triangle_start[i + 1]] = tri_all[slot[i]:slot[i] + count[i]]
-        reg_out[triangle_start[i]:triangle_start[i + 1]] = reg_all[slot[i]:slot[i] + count[i]]
-    return tri_out, reg_out, triangle_start
+            if nt + k > cap:
+                cap = max(2 * cap, nt + k)
+                grown_t = np.empty((cap, 3), dtype=np.int64)
+                grown_r = np.empty(cap, dtype=np.int64)
+                grown_t[:nt] = tri_out[:nt]
+                grown_r[:nt] = reg_out[:nt]
+                tri_out = grown_t
+                reg_out = grown_r
+            tri_out[nt : nt + k] = t
+            reg_out[nt : nt + k] = r
+            nt += k
+        triangle_start[i + 1] = nt
+    return tri_out[:nt].copy(), reg_out[:nt].copy(), triangle_start

@@ -96,7 +96,7 @@ class WeatheringSolver(GuardedMeshSolver):
         (:mod:`pverosion.kernels.materials`, erodibility = 1 / hardness), the
         last two evaluated every step so that erosion follows the material
         under each vertex *now*.
-    min_edge_ratio, check_every, max_halvings, orientation
+    min_edge_ratio, check_every, max_halvings, orientation, repair
         Mesh improvement and self-intersection guard, see
         :class:`~pverosion.kernels.mesh_evolution.GuardedMeshSolver`.
 
@@ -135,6 +135,7 @@ class WeatheringSolver(GuardedMeshSolver):
         check_every: int = 10,
         max_halvings: int = 4,
         orientation: str = "outward",
+        repair: str = "retry",
     ) -> None:
         if not (np.isfinite(power) and power >= 1.0):
             raise ValueError(f"power must be a real number >= 1; got {power!r}")
@@ -143,7 +144,7 @@ class WeatheringSolver(GuardedMeshSolver):
         if direction not in DIRECTIONS:
             raise ValueError(f"direction must be one of {DIRECTIONS}; got {direction!r}")
         super().__init__(points, faces, min_edge_ratio=min_edge_ratio, check_every=check_every,
-                         max_halvings=max_halvings, orientation=orientation)
+                         max_halvings=max_halvings, orientation=orientation, repair=repair)
         self.power = float(power)
         self.step_divisor = float(step_divisor)
         self.direction = direction

@@ -1,0 +1,178 @@
+"""Intersection detection, repair and Booleans: milliseconds per scene, against manifold3d and VTK in the same run.
+
+Scenes (:mod:`pverosion.intersection_scenes`, the thesis' chapter 10):
+
+- two spheres (Figure 10.11), the rotated cuboids at n = 16 (Figure 10.12),
+  the cube and sphere (Figure 10.15): two-mesh unions, timed for pverosion
+  (detection alone, and the whole union), manifold3d's union, and VTK's
+  ``vtkBooleanOperationPolyDataFilter`` union;
+- the self-intersecting tube (Figure 10.14): repair only (the other tools
+  take no self-intersecting input);
+- the twelve objects (Figure 10.13, six bunnies from ``../shared/data/bunny.ply``
+  when present): detection and repair of all of them as one mesh, against
+  manifold3d's batch union of the twelve.
+
+Every figure is the median of ``--repeats`` runs after one warm-up run
+(numba compilation excluded); VTK runs once per scene (it takes seconds).
+The targets: twelve objects detected and repaired in <= 500 ms; two-mesh
+unions within 4x of manifold3d's time.
+
+Usage: ``python benchmarks/bench_intersections.py [--repeats 7] [--scene NAME|all] [--no-vtk]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pyvista as pv
+
+from pverosion.intersection_scenes import (
+    combine,
+    crossed_tube,
+    cube_and_sphere,
+    rotated_cuboids,
+    twelve_objects,
+    two_spheres,
+)
+from pverosion.kernels.intersection_curves import intersection_curves, trace_polylines
+from pverosion.kernels.mesh_repair import boolean_meshes, repair_intersections
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+TWELVE_TARGET_MS = 500.0
+UNION_RATIO_TARGET = 4.0
+
+
+def _median_ms(run, repeats: int) -> float:
+    run()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        run()
+        times.append(time.perf_counter() - start)
+    return round(1e3 * float(np.median(times)), 2)
+
+
+def _manifold(mesh: pv.PolyData):
+    import manifold3d
+
+    return manifold3d.Manifold(manifold3d.Mesh(vert_properties=np.asarray(mesh.points, np.float32),
+                                               tri_verts=np.asarray(mesh.regular_faces, np.uint32)))
+
+
+def _vtk_union_ms(a: pv.PolyData, b: pv.PolyData) -> tuple[float, float]:
+    """VTK's Boolean union: milliseconds of one run and the result's volume."""
+    from vtkmodules.vtkFiltersGeneral import vtkBooleanOperationPolyDataFilter
+
+    flt = vtkBooleanOperationPolyDataFilter()
+    flt.SetOperationToUnion()
+    flt.SetInputData(0, a)
+    flt.SetInputData(1, b)
+    start = time.perf_counter()
+    flt.Update()
+    elapsed = time.perf_counter() - start
+    out = pv.wrap(flt.GetOutput())
+    return round(1e3 * elapsed, 1), float(out.volume) if out.n_cells else float("nan")
+
+
+def _volume(points: np.ndarray, faces: np.ndarray) -> float:
+    p = points[faces]
+    return float(np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6.0)
+
+
+def two_mesh_union(name: str, a: pv.PolyData, b: pv.PolyData, repeats: int, vtk: bool) -> dict:
+    points, faces, group = combine([a, b])
+    pa, fa, pb, fb = np.asarray(a.points, float), a.regular_faces, np.asarray(b.points, float), b.regular_faces
+    result = boolean_meshes(pa, fa, pb, fb, "union")
+    figures = {
+        "scene": name,
+        "faces": len(faces),
+        "detection_ms": _median_ms(lambda: intersection_curves(points, faces, group=group), repeats),
+        "union_ms": _median_ms(lambda: boolean_meshes(pa, fa, pb, fb, "union"), repeats),
+        "loops": len(trace_polylines(result.curves)),
+        "impossible_cases": result.curves.case_table["impossible"],
+        "volume": round(_volume(result.points, result.faces), 9),
+    }
+    try:
+        ma, mb = _manifold(a), _manifold(b)
+        figures["manifold3d_union_ms"] = _median_ms(lambda: (ma + mb).to_mesh(), repeats)
+        figures["manifold3d_volume"] = round((ma + mb).volume(), 9)
+        figures["union_ratio"] = round(figures["union_ms"] / figures["manifold3d_union_ms"], 2)
+        figures["meets_ratio_target"] = figures["union_ratio"] <= UNION_RATIO_TARGET
+    except ImportError:
+        figures["manifold3d_union_ms"] = None
+    if vtk:
+        figures["vtk_union_ms"], figures["vtk_volume"] = _vtk_union_ms(a, b)
+    return figures
+
+
+def self_intersection(repeats: int) -> dict:
+    tube = crossed_tube()
+    points, faces = np.asarray(tube.points, float), tube.regular_faces
+    result = repair_intersections(points, faces)
+    return {
+        "scene": "self_intersection",
+        "faces": len(faces),
+        "detection_ms": _median_ms(lambda: intersection_curves(points, faces), repeats),
+        "repair_ms": _median_ms(lambda: repair_intersections(points, faces), repeats),
+        "loops": len(trace_polylines(result.curves)),
+        "volume_before": round(_volume(points, faces), 6),
+        "volume_after": round(_volume(result.points, result.faces), 6),
+    }
+
+
+def twelve(repeats: int) -> dict:
+    bunny = DATA / "bunny.ply"
+    objects = twelve_objects(bunny=bunny if bunny.exists() else None)
+    points, faces, _ = combine(objects)
+    result = repair_intersections(points, faces)
+    figures = {
+        "scene": "twelve_objects",
+        "bunny": bunny.exists(),
+        "faces": len(faces),
+        "detection_ms": _median_ms(lambda: intersection_curves(points, faces), repeats),
+        "detection_and_repair_ms": _median_ms(lambda: repair_intersections(points, faces), repeats),
+        "target_ms": TWELVE_TARGET_MS,
+        "loops": len(trace_polylines(result.curves)),
+        "case_table": result.curves.case_table,
+        "output_faces": len(result.faces),
+        "volume": round(_volume(result.points, result.faces), 6),
+        "thesis_ms": {"search": 7631, "fix": 476},
+    }
+    figures["meets_target"] = figures["detection_and_repair_ms"] <= TWELVE_TARGET_MS
+    try:
+        import manifold3d
+
+        parts = [_manifold(mesh) for mesh in objects]
+        figures["manifold3d_union_ms"] = _median_ms(
+            lambda: manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add).to_mesh(), repeats)
+        figures["manifold3d_volume"] = round(manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add).volume(),
+                                             6)
+    except ImportError:
+        figures["manifold3d_union_ms"] = None
+    return figures
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--scene", default="all",
+                        choices=["all", "two_spheres", "cuboids", "cube_sphere", "self_intersection", "twelve_objects"])
+    parser.add_argument("--no-vtk", action="store_true", help="skip VTK's Boolean filter (slow)")
+    args = parser.parse_args()
+    scenes = {
+        "two_spheres": lambda: two_mesh_union("two_spheres", *two_spheres(), args.repeats, not args.no_vtk),
+        "cuboids": lambda: two_mesh_union("cuboids_16", *rotated_cuboids(16), args.repeats, not args.no_vtk),
+        "cube_sphere": lambda: two_mesh_union("cube_sphere", *cube_and_sphere(), args.repeats, not args.no_vtk),
+        "self_intersection": lambda: self_intersection(args.repeats),
+        "twelve_objects": lambda: twelve(args.repeats),
+    }
+    names = list(scenes) if args.scene == "all" else [args.scene]
+    print(json.dumps({name: scenes[name]() for name in names}, indent=2))
+
+
+if __name__ == "__main__":
+    main()
