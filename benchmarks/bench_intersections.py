@@ -13,17 +13,19 @@ Scenes (:mod:`pverosion.intersection_scenes`, the thesis' chapter 10):
   manifold3d's batch union of the twelve.
 
 Every figure is the median of ``--repeats`` runs after one warm-up run
-(numba compilation excluded); VTK runs once per scene (it takes seconds).
+(numba compilation excluded); VTK runs once per scene, in a child process
+stopped after ``--vtk-limit`` seconds (it takes minutes on the larger scenes).
 The targets: twelve objects detected and repaired in <= 500 ms; two-mesh
 unions within 4x of manifold3d's time.
 
-Usage: ``python benchmarks/bench_intersections.py [--repeats 7] [--scene NAME|all] [--no-vtk]``
+Usage: ``python benchmarks/bench_intersections.py [--repeats 7] [--scene NAME|all] [--vtk-limit 60]``
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import time
 from pathlib import Path
 
@@ -63,8 +65,7 @@ def _manifold(mesh: pv.PolyData):
                                                tri_verts=np.asarray(mesh.regular_faces, np.uint32)))
 
 
-def _vtk_union_ms(a: pv.PolyData, b: pv.PolyData) -> tuple[float, float]:
-    """VTK's Boolean union: milliseconds of one run and the result's volume."""
+def _vtk_union(a: pv.PolyData, b: pv.PolyData, queue) -> None:
     from vtkmodules.vtkFiltersGeneral import vtkBooleanOperationPolyDataFilter
 
     flt = vtkBooleanOperationPolyDataFilter()
@@ -75,7 +76,22 @@ def _vtk_union_ms(a: pv.PolyData, b: pv.PolyData) -> tuple[float, float]:
     flt.Update()
     elapsed = time.perf_counter() - start
     out = pv.wrap(flt.GetOutput())
-    return round(1e3 * elapsed, 1), float(out.volume) if out.n_cells else float("nan")
+    queue.put((round(1e3 * elapsed, 1), float(out.volume) if out.n_cells else float("nan")))
+
+
+def _vtk_union_ms(a: pv.PolyData, b: pv.PolyData, limit: float) -> tuple[float | str, float | None]:
+    """VTK's Boolean union in a child process: milliseconds of one run and the result's volume, or
+    ``"over <limit> s"`` when it has not finished by then."""
+    context = multiprocessing.get_context("spawn")
+    queue = context.Queue()
+    child = context.Process(target=_vtk_union, args=(pv.PolyData(a), pv.PolyData(b), queue))
+    child.start()
+    child.join(limit)
+    if child.is_alive():
+        child.terminate()
+        child.join()
+        return f"over {limit:g} s", None
+    return queue.get()
 
 
 def _volume(points: np.ndarray, faces: np.ndarray) -> float:
@@ -83,7 +99,7 @@ def _volume(points: np.ndarray, faces: np.ndarray) -> float:
     return float(np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6.0)
 
 
-def two_mesh_union(name: str, a: pv.PolyData, b: pv.PolyData, repeats: int, vtk: bool) -> dict:
+def two_mesh_union(name: str, a: pv.PolyData, b: pv.PolyData, repeats: int, vtk: float) -> dict:
     points, faces, group = combine([a, b])
     pa, fa, pb, fb = np.asarray(a.points, float), a.regular_faces, np.asarray(b.points, float), b.regular_faces
     result = boolean_meshes(pa, fa, pb, fb, "union")
@@ -104,8 +120,8 @@ def two_mesh_union(name: str, a: pv.PolyData, b: pv.PolyData, repeats: int, vtk:
         figures["meets_ratio_target"] = figures["union_ratio"] <= UNION_RATIO_TARGET
     except ImportError:
         figures["manifold3d_union_ms"] = None
-    if vtk:
-        figures["vtk_union_ms"], figures["vtk_volume"] = _vtk_union_ms(a, b)
+    if vtk > 0:
+        figures["vtk_union_ms"], figures["vtk_volume"] = _vtk_union_ms(a, b, vtk)
     return figures
 
 
@@ -161,12 +177,13 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--scene", default="all",
                         choices=["all", "two_spheres", "cuboids", "cube_sphere", "self_intersection", "twelve_objects"])
-    parser.add_argument("--no-vtk", action="store_true", help="skip VTK's Boolean filter (slow)")
+    parser.add_argument("--vtk-limit", type=float, default=60.0,
+                        help="seconds VTK's Boolean filter may take per scene (0: skip it)")
     args = parser.parse_args()
     scenes = {
-        "two_spheres": lambda: two_mesh_union("two_spheres", *two_spheres(), args.repeats, not args.no_vtk),
-        "cuboids": lambda: two_mesh_union("cuboids_16", *rotated_cuboids(16), args.repeats, not args.no_vtk),
-        "cube_sphere": lambda: two_mesh_union("cube_sphere", *cube_and_sphere(), args.repeats, not args.no_vtk),
+        "two_spheres": lambda: two_mesh_union("two_spheres", *two_spheres(), args.repeats, args.vtk_limit),
+        "cuboids": lambda: two_mesh_union("cuboids_16", *rotated_cuboids(16), args.repeats, args.vtk_limit),
+        "cube_sphere": lambda: two_mesh_union("cube_sphere", *cube_and_sphere(), args.repeats, args.vtk_limit),
         "self_intersection": lambda: self_intersection(args.repeats),
         "twelve_objects": lambda: twelve(args.repeats),
     }
