@@ -40,6 +40,7 @@ from pverosion.intersection_scenes import (
     twelve_objects,
     two_spheres,
 )
+from pverosion.kernels.geometry import signed_volume
 from pverosion.kernels.intersection_curves import intersection_curves, trace_polylines
 from pverosion.kernels.mesh_repair import boolean_meshes, repair_intersections
 
@@ -94,11 +95,6 @@ def _vtk_union_ms(a: pv.PolyData, b: pv.PolyData, limit: float) -> tuple[float |
     return queue.get()
 
 
-def _volume(points: np.ndarray, faces: np.ndarray) -> float:
-    p = points[faces]
-    return float(np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6.0)
-
-
 def two_mesh_union(name: str, a: pv.PolyData, b: pv.PolyData, repeats: int, vtk: float) -> dict:
     points, faces, group = combine([a, b])
     pa, fa, pb, fb = np.asarray(a.points, float), a.regular_faces, np.asarray(b.points, float), b.regular_faces
@@ -110,7 +106,7 @@ def two_mesh_union(name: str, a: pv.PolyData, b: pv.PolyData, repeats: int, vtk:
         "union_ms": _median_ms(lambda: boolean_meshes(pa, fa, pb, fb, "union"), repeats),
         "loops": len(trace_polylines(result.curves)),
         "impossible_cases": result.curves.case_table["impossible"],
-        "volume": round(_volume(result.points, result.faces), 9),
+        "volume": round(signed_volume(result.points, result.faces), 9),
     }
     try:
         ma, mb = _manifold(a), _manifold(b)
@@ -135,8 +131,8 @@ def self_intersection(repeats: int) -> dict:
         "detection_ms": _median_ms(lambda: intersection_curves(points, faces), repeats),
         "repair_ms": _median_ms(lambda: repair_intersections(points, faces), repeats),
         "loops": len(trace_polylines(result.curves)),
-        "volume_before": round(_volume(points, faces), 6),
-        "volume_after": round(_volume(result.points, result.faces), 6),
+        "volume_before": round(signed_volume(points, faces), 6),
+        "volume_after": round(signed_volume(result.points, result.faces), 6),
     }
 
 
@@ -155,7 +151,7 @@ def twelve(repeats: int) -> dict:
         "loops": len(trace_polylines(result.curves)),
         "case_table": result.curves.case_table,
         "output_faces": len(result.faces),
-        "volume": round(_volume(result.points, result.faces), 6),
+        "volume": round(signed_volume(result.points, result.faces), 6),
         "thesis_ms": {"search": 7631, "fix": 476},
     }
     figures["meets_target"] = figures["detection_and_repair_ms"] <= TWELVE_TARGET_MS

@@ -222,33 +222,7 @@ def _edge_claims(ax, ay, bx, by, px, py):
 @njit(cache=True)
 def point_inside(p, points, faces, lo, size, dims, start2, items2):
     """True when ``p`` is inside the closed mesh (parity of the +z ray's crossings)."""
-    i = int((p[0] - lo[0]) / size)
-    j = int((p[1] - lo[1]) / size)
-    if i < 0 or j < 0 or i >= dims[0] or j >= dims[1] or p[0] < lo[0] or p[1] < lo[1]:
-        return False
-    b = i + dims[0] * j
-    inside = False
-    for q in range(start2[b], start2[b + 1]):
-        t = items2[q]
-        a, bb, c = faces[t, 0], faces[t, 1], faces[t, 2]
-        ax, ay, az = points[a, 0], points[a, 1], points[a, 2]
-        bx, by, bz = points[bb, 0], points[bb, 1], points[bb, 2]
-        cx, cy, cz = points[c, 0], points[c, 1], points[c, 2]
-        area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
-        if area == 0.0:
-            continue
-        if area < 0.0:  # seen from below: walk it the other way
-            bx, by, bz, cx, cy, cz = cx, cy, cz, bx, by, bz
-            area = -area
-        if not (_edge_claims(ax, ay, bx, by, p[0], p[1]) and _edge_claims(bx, by, cx, cy, p[0], p[1])
-                and _edge_claims(cx, cy, ax, ay, p[0], p[1])):
-            continue
-        wa = (bx - p[0]) * (cy - p[1]) - (by - p[1]) * (cx - p[0])  # barycentric weights times area
-        wb = (cx - p[0]) * (ay - p[1]) - (cy - p[1]) * (ax - p[0])
-        z = (wa * az + wb * bz + (area - wa - wb) * cz) / area
-        if z > p[2]:
-            inside = not inside
-    return inside
+    return ray_winding(p, points, faces, lo, size, dims, start2, items2, -1, np.zeros(0, np.int64), -1) % 2 != 0
 
 
 @njit(cache=True)
