@@ -162,6 +162,14 @@ def _strip(out: Path, name: str, shown: pv.PolyData, curves: IntersectionCurves,
                         particles=[[None, dots, None], [None, far, None]], panel_size=(400, 400))
 
 
+def _write_scene(out: Path, stem: str, source: pv.PolyData, curves: IntersectionCurves,
+                 mesh: pv.PolyData) -> list[Path]:
+    """Write <stem>_input.vtp, <stem>_curves.vtp and <stem>.vtp (atomically); their paths."""
+    return [write_atomic(source, out / f"{stem}_input.vtp"),
+            write_atomic(_curve_lines(curves), out / f"{stem}_curves.vtp"),
+            write_atomic(mesh, out / f"{stem}.vtp")]
+
+
 def _repair_scene(name: str, out: Path, meshes: list[pv.PolyData], input_colour=None, labels=None,
                   crop=None) -> dict:
     """Put ``meshes`` together, repair, write <name>_input / _curves / .vtp and the PNG strip (``labels``: three
@@ -171,9 +179,7 @@ def _repair_scene(name: str, out: Path, meshes: list[pv.PolyData], input_colour=
     result = repair_intersections(points, faces)
     seconds = time.perf_counter() - start
     mesh = _result_mesh(result, [source])
-    paths = [write_atomic(source, out / f"{name}_input.vtp"),
-             write_atomic(_curve_lines(result.curves), out / f"{name}_curves.vtp"),
-             write_atomic(mesh, out / f"{name}.vtp")]
+    paths = _write_scene(out, name, source, result.curves, mesh)
     figures = _figures(result)
     colour = source["source_mesh"] if input_colour is None else input_colour(result)
     result_colour = mesh["source_mesh"] if len(meshes) > 1 else _pieces(result.faces, len(result.points))
@@ -212,9 +218,7 @@ def scene_cuboids(out: Path, quick: bool) -> dict:
         if n == 16:
             source, _, _ = _input_mesh([a, b])
             mesh = _result_mesh(result, [a, b])
-            paths += [write_atomic(source, out / "cuboids_16_input.vtp"),
-                      write_atomic(_curve_lines(result.curves), out / "cuboids_16_curves.vtp"),
-                      write_atomic(mesh, out / "cuboids_16.vtp")]
+            paths += _write_scene(out, "cuboids_16", source, result.curves, mesh)
             paths.append(_strip(out, "cuboids", _coloured(source, source["source_mesh"]), result.curves,
                                 _coloured(mesh, mesh["source_mesh"]),
                                 [f"n = 16: {a.n_cells + b.n_cells} faces", f"curve loops: {figures['loops']}",
@@ -278,9 +282,7 @@ def scene_twelve_objects(out: Path, quick: bool) -> dict:
     repair = time.perf_counter() - start
     mesh = _result_mesh(result, [source])
     figures = _figures(result)
-    paths = [write_atomic(source, out / "twelve_objects_input.vtp"),
-             write_atomic(_curve_lines(result.curves), out / "twelve_objects_curves.vtp"),
-             write_atomic(mesh, out / "twelve_objects.vtp")]
+    paths = _write_scene(out, "twelve_objects", source, result.curves, mesh)
     paths.append(_strip(out, "twelve_objects", _coloured(source, source["source_mesh"]), result.curves,
                         _coloured(mesh, mesh["source_mesh"]),
                         [f"twelve objects: {len(faces)} faces", f"curve loops: {figures['loops']}",

@@ -18,7 +18,7 @@ from numba import njit
 
 from pverosion.kernels.predicates import orient2d
 
-__all__ = ["TriangleIndex", "box_triangles", "overlap_grid", "point_inside", "ray_winding", "segment_crossings", "unit_normals"]
+__all__ = ["TriangleIndex", "box_triangles", "bucket_boxes", "overlap_grid", "point_inside", "ray_winding", "segment_crossings", "unit_normals"]
 
 
 @dataclass(frozen=True)
@@ -69,9 +69,9 @@ class TriangleIndex:
         dims = np.maximum(np.ceil(extent / size).astype(np.int64), 1)
         tlo = np.clip(((tri.min(axis=1) - lo) / size).astype(np.int64), 0, dims - 1)
         thi = np.clip(((tri.max(axis=1) - lo) / size).astype(np.int64), 0, dims - 1)
-        start, items = _bucket(tlo, thi, dims)
+        start, items = bucket_boxes(tlo, thi, dims)
         d2 = np.array([dims[0], dims[1], 1])
-        start2, items2 = _bucket(tlo * [1, 1, 0], thi * [1, 1, 0], d2)
+        start2, items2 = bucket_boxes(tlo * [1, 1, 0], thi * [1, 1, 0], d2)
         return cls(points, faces, normals, lo, float(size), dims, start, items, start2, items2)
 
 
@@ -84,7 +84,9 @@ def unit_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def _bucket(tlo, thi, dims):
+def bucket_boxes(tlo, thi, dims):
+    """CSR (offsets, items) of the items whose cell boxes ``tlo``..``thi`` (N, 3) meet each cell of a grid of
+    ``dims`` cells (x fastest), items in index order within a cell."""
     counts = np.zeros(dims[0] * dims[1] * dims[2] + 1, np.int64)
     for t in range(tlo.shape[0]):
         for k in range(tlo[t, 2], thi[t, 2] + 1):

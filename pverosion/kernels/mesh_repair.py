@@ -33,7 +33,7 @@ from pverosion.kernels.intersection_curves import (
     trace_polylines,
     unique_rows,
 )
-from pverosion.kernels.mesh_query import ray_winding
+from pverosion.kernels.mesh_query import bucket_boxes, ray_winding
 from pverosion.kernels.polygon_cut import cut_triangles
 from pverosion.kernels.topology import boundary_edges
 from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh
@@ -260,25 +260,15 @@ def _columns(points, faces):
     dims = np.ones(3, np.int64)
     for a in range(2):
         dims[a] = max(int(np.ceil(max(hi[a] - lo[a], 1e-12) / size)), 1)
-    box = np.empty((faces.shape[0], 4), np.int64)
-    counts = np.zeros(dims[0] * dims[1] + 1, np.int64)
+    low = np.zeros((faces.shape[0], 3), np.int64)  # column boxes (one layer along z)
+    high = np.zeros((faces.shape[0], 3), np.int64)
     for f in range(faces.shape[0]):
         for a in range(2):
             x0 = min(points[faces[f, 0], a], points[faces[f, 1], a], points[faces[f, 2], a])
             x1 = max(points[faces[f, 0], a], points[faces[f, 1], a], points[faces[f, 2], a])
-            box[f, a] = min(max(int((x0 - lo[a]) / size), 0), dims[a] - 1)
-            box[f, 2 + a] = min(max(int((x1 - lo[a]) / size), 0), dims[a] - 1)
-        for j in range(box[f, 1], box[f, 3] + 1):
-            for i in range(box[f, 0], box[f, 2] + 1):
-                counts[1 + i + dims[0] * j] += 1
-    start = np.cumsum(counts)
-    fill = start[:-1].copy()
-    items = np.empty(start[-1], np.int64)
-    for f in range(faces.shape[0]):
-        for j in range(box[f, 1], box[f, 3] + 1):
-            for i in range(box[f, 0], box[f, 2] + 1):
-                items[fill[i + dims[0] * j]] = f
-                fill[i + dims[0] * j] += 1
+            low[f, a] = min(max(int((x0 - lo[a]) / size), 0), dims[a] - 1)
+            high[f, a] = min(max(int((x1 - lo[a]) / size), 0), dims[a] - 1)
+    start, items = bucket_boxes(low, high, dims)
     return lo, size, dims, start, items
 
 

@@ -26,7 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
-from pverosion.kernels.mesh_query import _bucket
+from pverosion.kernels.mesh_query import bucket_boxes
 from pverosion.kernels.validation import as_triangle_mesh
 
 __all__ = ["overhanging_vertices"]
@@ -73,7 +73,7 @@ def _grid(points, faces, lo, extent):
         for d in range(2):
             blo[t, d] = min(max(int((box[t, d] - lo[d]) / size), 0), dims[d] - 1)
             bhi[t, d] = min(max(int((box[t, d + 2] - lo[d]) / size), 0), dims[d] - 1)
-    start, items = _bucket(blo, bhi, dims)
+    start, items = bucket_boxes(blo, bhi, dims)
     for b in range(dims[0] * dims[1]):
         chunk = items[start[b]:start[b + 1]]
         items[start[b]:start[b + 1]] = chunk[np.argsort(-top[chunk])]
