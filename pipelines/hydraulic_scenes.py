@@ -81,8 +81,8 @@ def run_scene(name: str, out: Path, *, quick: bool, save_every: int) -> dict:
                  particles=[[panels[t]["particles"] for t in shown], [None] * len(shown)])
     return {
         "scene": name, "faces": mesh.n_cells, "iterations": iterations, "model": options["model"],
-        "particles_last": int(stats["particles"]), "eroded_volume": stats["volume"] - float(
-            final.field_data["hydraulic_volume"][0]),
+        "particles_last": int(stats["particles"]), "volume_lost": float(
+            final.field_data["hydraulic_volume"][0]) - stats["volume"],
         "deepest_particle_inside_radii": round(deepest, 4),
         "overhanging_vertices_before": _overhangs(mesh, base), "overhanging_vertices_after": _overhangs(final, base),
         "seconds": round(seconds, 1), "series": str(series.path),

@@ -5,9 +5,11 @@ import numpy as np
 import pytest
 import pyvista as pv
 
+from pverosion.kernels.hydraulic_erosion import HydraulicSolver
 from pverosion.kernels.intersection import intersecting_faces
 from pverosion.kernels.intersection_curves import intersection_curves
 from pverosion.kernels.mesh_evolution import GuardedMeshSolver, volume_area
+from pverosion.kernels.particle_fluid import FluidParameters
 
 
 class Dent(GuardedMeshSolver):
@@ -69,3 +71,19 @@ def test_retry_rolls_back_and_off_leaves_the_intersections():
     assert off.check_every == 0 and intersecting_faces(off.points, off.faces).any()
     with pytest.raises(ValueError, match="repair"):
         Dent(points, faces, depth=0.07, repair="sometimes")
+
+
+def test_hydraulic_repair_hands_the_sediment_of_vertices_cut_away_to_the_nearest_ones_left():
+    points, faces = _slab()
+    solver = HydraulicSolver(points, faces, fluid=FluidParameters(radius=0.02), model="sediment", repair="topology")
+    rng = np.random.default_rng(3)
+    solver.pending = rng.uniform(-1e-4, 1e-4, len(solver.points))
+    owed = solver.pending.sum()
+    pushed = solver.points.copy()
+    dent = (pushed[:, 2] > 0.0) & (np.abs(pushed[:, 0]) < 0.3) & (np.abs(pushed[:, 1]) < 0.3)
+    pushed[dent, 2] -= 0.14  # the dent's top goes through the bottom
+    solver.points = pushed
+    solver._repair_topology()
+    assert solver.repairs == 1 and _closed(solver.faces)
+    assert len(solver.pending) == len(solver.points) < len(points)
+    assert solver.pending.sum() == pytest.approx(owed, rel=1e-12, abs=1e-15)

@@ -460,9 +460,12 @@ class HydraulicSolver(GuardedMeshSolver):
         self.pending = self.pending[kept]
         self.f_distance = self.f_distance[kept]
 
-    def _after_repair(self, source: np.ndarray, donor: np.ndarray) -> None:
-        # sediment owed to a vertex stays with it; the new vertices on the curves owe nothing
-        self.pending = np.where(source >= 0, self.pending[donor], 0.0)
+    def _after_repair(self, source: np.ndarray, donor: np.ndarray, heir: np.ndarray) -> None:
+        # sediment owed to a vertex stays with it, that of a vertex cut away goes to the nearest one left; the new
+        # vertices on the curves owe nothing
+        gone = heir >= 0
+        self.pending = (np.where(source >= 0, self.pending[donor], 0.0)
+                        + np.bincount(heir[gone], weights=self.pending[gone], minlength=len(source)))
         self.f_distance = self.f_distance[donor]
         self.fluid.set_mesh(self.points, self.faces)
 

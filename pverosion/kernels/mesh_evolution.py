@@ -43,6 +43,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
@@ -413,18 +414,26 @@ class GuardedMeshSolver:
         donor = np.full(len(result.points), -1, np.int64)
         donor[result.faces.ravel()] = self.faces[np.repeat(result.source_face, 3), 0]
         old = np.where(source >= 0, source, donor)
+        # an old vertex the repair cut away (or merged into a coincident one) leaves its state to the nearest
+        # vertex that stays
+        gone = np.ones(len(self.points), bool)
+        gone[source[source >= 0]] = False
+        heir = np.full(len(self.points), -1, np.int64)
+        if gone.any():
+            heir[gone] = cKDTree(result.points).query(self.points[gone])[1]
         self.points, self.faces = result.points, result.faces
         self.ids = self.ids[old]
         self.displacement = self.displacement[old]
-        self._after_repair(source, old)
+        self._after_repair(source, old, heir)
         self._build_topology()
         self._baseline = 0
         self.repairs += 1
         self._lap("repair", clock)
 
-    def _after_repair(self, source: np.ndarray, donor: np.ndarray) -> None:
+    def _after_repair(self, source: np.ndarray, donor: np.ndarray, heir: np.ndarray) -> None:
         """Carry per-vertex state of a subclass over a topology repair: ``source`` (V',) is the old index of
-        every vertex (-1 for a new one on a curve), ``donor`` an old vertex next to it."""
+        every vertex (-1 for a new one on a curve), ``donor`` (V',) an old vertex next to it, and ``heir`` (V,)
+        the new vertex nearest to every old vertex that is gone (-1 for those that stay)."""
         self._after_collapse(donor)
 
     @property
