@@ -9,6 +9,7 @@ from __future__ import annotations
 import pyvista as pv
 
 from pverosion import api
+from pverosion.kernels.mesh_repair import DEFAULT_TOLERANCE
 
 
 @pv.register_dataset_accessor("erosion", pv.DataSet)
@@ -46,10 +47,13 @@ class ErosionAccessor:
         """Hydraulic erosion of this closed mesh by a particle fluid; see :func:`pverosion.hydraulic_erosion`."""
         return api.hydraulic_erosion(self._dataset, **options)
 
-    def repair(self, *, orientation: str = "keep") -> pv.PolyData:
+    def repair(self, *, orientation: str = "keep", tolerance: float = DEFAULT_TOLERANCE,
+               improve: bool = False) -> pv.PolyData:
         """Self-intersections of this closed mesh removed; see :func:`pverosion.repair`."""
-        return api.repair(self._dataset, orientation=orientation)
+        return api.repair(self._dataset, orientation=orientation, tolerance=tolerance, improve=improve)
 
-    def boolean(self, other: pv.PolyData, operation: str = "union", *, orientation: str = "keep") -> pv.PolyData:
+    def boolean(self, other: pv.PolyData, operation: str = "union", *, orientation: str = "keep",
+                tolerance: float = DEFAULT_TOLERANCE, improve: bool = False) -> pv.PolyData:
         """Boolean ``operation`` of this closed mesh (A) and ``other`` (B); see :func:`pverosion.boolean`."""
-        return api.boolean(self._dataset, other, operation, orientation=orientation)
+        return api.boolean(self._dataset, other, operation, orientation=orientation, tolerance=tolerance,
+                           improve=improve)

@@ -21,6 +21,7 @@ from pverosion.kernels.materials import (
     MaterialField,
     bsp_from_volume,
 )
+from pverosion.kernels.mesh_repair import DEFAULT_TOLERANCE
 from pverosion.kernels.particle_fluid import Drain, Emitter
 from pverosion.kernels.weathering import Erodibility
 
@@ -344,7 +345,8 @@ def freeze_thaw(mesh: pv.PolyData, *, paths: int = 1000, cells: int = 1000, patt
     return pv.wrap(alg.run(mesh))
 
 
-def repair(mesh: pv.PolyData, *, orientation: str = "keep") -> pv.PolyData:
+def repair(mesh: pv.PolyData, *, orientation: str = "keep", tolerance: float = DEFAULT_TOLERANCE,
+           improve: bool = False) -> pv.PolyData:
     """Remove the self-intersections of a closed triangle mesh (Skorkovská's thesis §10.2).
 
     The intersection curves are found with exact predicates and the faces
@@ -361,6 +363,13 @@ def repair(mesh: pv.PolyData, *, orientation: str = "keep") -> pv.PolyData:
         ``"keep"`` trusts the input's winding; ``"outward"`` first makes each
         closed part consistent and outward (a part that starts inside another
         one is taken for a cavity wall, so not for overlapping parts).
+    tolerance : float, default: 1e-9
+        Pre-pass: nearly degenerate faces (an edge shorter than this, or a
+        corner this close to the opposite edge, relative to the bounding-box
+        diagonal) are removed first by edge collapse and flip; 0 skips it.
+    improve : bool, default: False
+        Improve the mesh afterwards: collapse the needles and flip or split
+        the caps that cutting along the curves made (the curves stay).
 
     Returns
     -------
@@ -391,10 +400,11 @@ def repair(mesh: pv.PolyData, *, orientation: str = "keep") -> pv.PolyData:
     >>> bool(out.volume < two.volume)
     True
     """
-    return apply_filter(RepairIntersections, mesh, orientation=orientation)
+    return apply_filter(RepairIntersections, mesh, orientation=orientation, tolerance=tolerance, improve=improve)
 
 
-def boolean(a: pv.PolyData, b: pv.PolyData, operation: str = "union", *, orientation: str = "keep") -> pv.PolyData:
+def boolean(a: pv.PolyData, b: pv.PolyData, operation: str = "union", *, orientation: str = "keep",
+            tolerance: float = DEFAULT_TOLERANCE, improve: bool = False) -> pv.PolyData:
     """Union, intersection or difference of two closed triangle meshes (Skorkovská's thesis §10.3).
 
     Parameters
@@ -406,6 +416,8 @@ def boolean(a: pv.PolyData, b: pv.PolyData, operation: str = "union", *, orienta
     orientation : {"keep", "outward"}, default: "keep"
         ``"keep"`` trusts the inputs' winding; ``"outward"`` first makes each
         closed part of each input consistent and outward.
+    tolerance, improve
+        Pre-pass and mesh improvement, as in :func:`repair`.
 
     Returns
     -------
@@ -442,7 +454,8 @@ def boolean(a: pv.PolyData, b: pv.PolyData, operation: str = "union", *, orienta
         if not isinstance(mesh, vtkPolyData):
             hint = " (call .extract_surface() first)" if isinstance(mesh, pv.DataSet) else ""
             raise TypeError(f"boolean needs PolyData surfaces{hint}; {name} is {type(mesh).__name__}")
-    return pv.wrap(BooleanOperation(operation=operation, orientation=orientation).run(a, b))
+    return pv.wrap(BooleanOperation(operation=operation, orientation=orientation, tolerance=tolerance,
+                                     improve=improve).run(a, b))
 
 
 def _spec(item, kind: str) -> str:

@@ -180,6 +180,25 @@ def test_function_accessor_filter_and_cli_agree(tmp_path, sphere_a, sphere_b, ca
                                                          "union.vtp"]
 
 
+def test_improve_and_tolerance_reach_the_kernel_from_every_front_end(tmp_path, sphere_a, sphere_b):
+    plain = pverosion.boolean(sphere_a, sphere_b, "difference")
+    better = pverosion.boolean(sphere_a, sphere_b, "difference", improve=True)
+    assert better.n_open_edges == 0 and better.n_cells < plain.n_cells
+    assert better.volume == pytest.approx(_manifold_volume(sphere_a, sphere_b, "difference"), rel=1e-3)
+    _assert_same(sphere_a.erosion.boolean(sphere_b, "difference", improve=True), better)
+    sphere_a.save(tmp_path / "a.vtp")
+    sphere_b.save(tmp_path / "b.vtp")
+    assert main(["boolean", str(tmp_path / "a.vtp"), str(tmp_path / "b.vtp"), "--operation", "difference",
+                 "--improve", "--tolerance", "1e-8", "-o", str(tmp_path / "out.vtp")]) == 0
+    _assert_same(pv.read(tmp_path / "out.vtp"),
+                 pverosion.boolean(sphere_a, sphere_b, "difference", improve=True, tolerance=1e-8))
+    two = sphere_a + sphere_b
+    repaired = two.erosion.repair(improve=True)
+    assert repaired.n_open_edges == 0 and repaired.n_cells < pverosion.repair(two).n_cells
+    with pytest.raises(ValueError, match="tolerance"):
+        pverosion.repair(two, tolerance=-1.0)
+
+
 def test_inputs_are_not_modified(sphere_a, sphere_b):
     a, b = sphere_a.copy(), sphere_b.copy()
     a.cell_data["tag"] = np.arange(a.n_cells, dtype=np.int32)

@@ -29,7 +29,13 @@ from vtkmodules.vtkCommonDataModel import vtkPolyData
 
 from pverosion.filters.base import ErosionFilter, Param, polydata_triangles, replace_triangles
 from pverosion.kernels.intersection_curves import CASES
-from pverosion.kernels.mesh_repair import OPERATIONS, RepairResult, boolean_meshes, repair_intersections
+from pverosion.kernels.mesh_repair import (
+    DEFAULT_TOLERANCE,
+    OPERATIONS,
+    RepairResult,
+    boolean_meshes,
+    repair_intersections,
+)
 from pverosion.kernels.orientation import orient_faces
 from pverosion.kernels.topology import boundary_edges
 from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh
@@ -38,6 +44,14 @@ __all__ = ["REPAIR_ORIENTATIONS", "BooleanOperation", "RepairIntersections", "re
 
 REPAIR_ORIENTATIONS = ("keep", "outward")
 """Accepted values of the ``orientation`` option of the repair filters."""
+
+_MESH_PARAMS = (
+    Param("tolerance", DEFAULT_TOLERANCE, "Pre-pass: faces with an edge shorter than this, or a corner this close to "
+          "the opposite edge (relative to the bounding-box diagonal), are nearly degenerate and removed first by "
+          "edge collapse and flip; 0 skips it.", minimum=0.0),
+    Param("improve", False, "Improve the mesh afterwards: collapse the needles and flip or split the caps the "
+          "cutting made, keeping the intersection curves."),
+)
 
 _ORIENTATION_DOC = ("Face orientation of the input(s): keep (must point outward) or make each closed part "
                     "consistent and outward first (parts that start inside another part become cavity walls, "
@@ -163,13 +177,15 @@ class RepairIntersections(ErosionFilter):
 
     LABEL = "Repair self-intersections"
     COMMAND = "repair"
-    PARAMS = (Param("orientation", "keep", _ORIENTATION_DOC, choices=REPAIR_ORIENTATIONS),)
+    PARAMS = (Param("orientation", "keep", _ORIENTATION_DOC, choices=REPAIR_ORIENTATIONS), *_MESH_PARAMS)
 
     def execute(self, inp, out) -> None:
         """Repair ``inp`` into ``out``."""
         points, faces = _closed_operand(inp, self.get_option("orientation"), "the mesh")
         self.UpdateProgress(0.1)
-        repair_output(repair_intersections(points, faces), [inp], out)
+        result = repair_intersections(points, faces, tolerance=self.get_option("tolerance"),
+                                      improve=self.get_option("improve"))
+        repair_output(result, [inp], out)
 
 
 class BooleanOperation(ErosionFilter):
@@ -194,6 +210,7 @@ class BooleanOperation(ErosionFilter):
         Param("operation", "union", "union (A or B), intersection (A and B), difference (A minus B) "
               "or reverse_difference (B minus A).", choices=OPERATIONS),
         Param("orientation", "keep", _ORIENTATION_DOC, choices=REPAIR_ORIENTATIONS),
+        *_MESH_PARAMS,
     )
 
     def execute(self, inp_a, inp_b, out) -> None:
@@ -202,5 +219,6 @@ class BooleanOperation(ErosionFilter):
         points_a, faces_a = _closed_operand(inp_a, orientation, "mesh A")
         points_b, faces_b = _closed_operand(inp_b, orientation, "mesh B")
         self.UpdateProgress(0.1)
-        result = boolean_meshes(points_a, faces_a, points_b, faces_b, self.get_option("operation"))
+        result = boolean_meshes(points_a, faces_a, points_b, faces_b, self.get_option("operation"),
+                                tolerance=self.get_option("tolerance"), improve=self.get_option("improve"))
         repair_output(result, [inp_a, inp_b], out)

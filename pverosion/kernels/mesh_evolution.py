@@ -43,8 +43,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.spatial import cKDTree
 from numba import njit, prange
+from scipy.spatial import cKDTree
 
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range

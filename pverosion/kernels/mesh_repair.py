@@ -1,5 +1,8 @@
 """Repair of intersecting triangle meshes and Boolean operations (Skorkovská's thesis, §10.2-10.3).
 
+0. A pre-pass removes nearly degenerate faces (needles by edge collapse,
+   caps by edge flip; :mod:`pverosion.kernels.degenerate`): an exactly
+   degenerate face on a curve has no plane to cut in.
 1. The intersection curves are found exactly
    (:func:`pverosion.kernels.intersection_curves.intersection_curves`).
 2. Every face that an intersection segment lies on, or whose edge a curve
@@ -16,15 +19,22 @@
    in front of them. A Boolean operation keeps, of each operand, the patches
    outside or inside the other, the thesis' temporary normals deciding
    which: a difference turns the subtracted operand's kept patches around.
+5. Optionally, the mesh is improved: the needles and caps the cutting made
+   collapse, flip or split while the curve vertices stay; should faces come
+   to meet, their vertices are locked and the improvement starts over.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numba import njit, prange
 
+from pverosion.kernels.degenerate import remove_degenerate_faces
+from pverosion.kernels.geometry import average_edge_length
+from pverosion.kernels.intersection import intersecting_faces
 from pverosion.kernels.intersection_curves import (
     VERTEX,
     IntersectionCurves,
@@ -42,6 +52,16 @@ __all__ = ["OPERATIONS", "RepairResult", "boolean_meshes", "repair_intersections
 
 OPERATIONS = ("union", "intersection", "difference", "reverse_difference")
 """Boolean operations: A ∪ B, A ∩ B, A ∖ B, B ∖ A."""
+
+DEFAULT_TOLERANCE = 1e-9
+"""Default ``tolerance`` of the pre-pass: faces with an edge shorter than this, or a corner this close to the
+opposite edge, relative to the input's bounding-box diagonal, are nearly degenerate."""
+
+IMPROVE_EDGE_RATIO = 0.25
+"""Mesh improvement after a repair: edges shorter than this times the input's average edge length collapse."""
+
+IMPROVE_MAX_ANGLE = 150.0
+"""Mesh improvement after a repair: faces with a larger angle (degrees) are caps, flipped or split."""
 
 # per operation and operand: the winding number of the other operand a kept patch has, and whether it turns
 _KEEP = {
@@ -344,7 +364,49 @@ def _corefine(pts, fcs, group, operation) -> RepairResult:
                         on_curve=on_curve[used], curves=curves, polylines=polylines)
 
 
-def repair_intersections(points, faces) -> RepairResult:
+def _tolerance(points: np.ndarray, tolerance: float) -> float:
+    if not (np.isfinite(tolerance) and tolerance >= 0.0):
+        raise ValueError(f"tolerance must be a finite number >= 0; got {tolerance!r}")
+    return float(tolerance) * float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+
+
+def _without_degenerate(pts, fcs, tol):
+    """The pre-pass: the mesh without nearly degenerate faces, with the input vertex and face of every vertex and
+    face."""
+    if tol == 0.0:
+        return pts, fcs, np.arange(len(pts)), np.arange(len(fcs))
+    clean = remove_degenerate_faces(pts, fcs, needle_length=tol, cap_height=tol)
+    return clean.points, clean.faces, clean.vertex_source, clean.face_source
+
+
+def _renumbered(result: RepairResult, vertex_source: np.ndarray, face_source: np.ndarray) -> RepairResult:
+    """``result`` with its sources taken one step further back (vertex_source (V,) may hold -1)."""
+    source = result.source_vertex
+    return replace(result, source_face=face_source[result.source_face],
+                   source_vertex=np.where(source >= 0, vertex_source[np.maximum(source, 0)], -1))
+
+
+def _improved(result: RepairResult, edge: float) -> RepairResult:
+    """Needles collapsed and caps flipped or split, the curves kept; vertices of faces that would meet another
+    face are locked and the improvement starts over (thrice at most, then the result stays as it was)."""
+    locked = np.zeros(len(result.points), bool)
+    for _ in range(3):
+        clean = remove_degenerate_faces(result.points, result.faces, needle_length=IMPROVE_EDGE_RATIO * edge,
+                                        max_angle=IMPROVE_MAX_ANGLE, polylines=result.polylines, locked=locked)
+        meets = intersecting_faces(clean.points, clean.faces)
+        if not meets.any():
+            improved = replace(result, points=clean.points, faces=clean.faces, on_curve=clean.on_curve,
+                               polylines=clean.polylines, source_vertex=clean.vertex_source,
+                               source_face=clean.face_source)
+            return _renumbered(improved, result.source_vertex, result.source_face)
+        locked[result.faces[clean.face_source[meets]].ravel()] = True
+    warnings.warn("the mesh improvement after the repair made faces meet; the repaired mesh is left as it was",
+                  RuntimeWarning, stacklevel=3)
+    return result
+
+
+def repair_intersections(points, faces, *, tolerance: float = DEFAULT_TOLERANCE, improve: bool = False
+                         ) -> RepairResult:
     """Remove the self-intersections of a closed mesh (and intersections between its closed parts).
 
     The result bounds the region where the winding number of the input is at
@@ -357,6 +419,17 @@ def repair_intersections(points, faces) -> RepairResult:
     points : array_like, shape (V, 3)
     faces : array_like, shape (F, 3)
         A closed mesh, oriented outward.
+    tolerance : float, default: :data:`DEFAULT_TOLERANCE`
+        Pre-pass: nearly degenerate faces (an edge shorter than this, or a
+        corner this close to the opposite edge, relative to the bounding-box
+        diagonal) are removed first by edge collapse and edge flip. 0 skips
+        the pre-pass (an exactly degenerate face on a curve then cannot be cut).
+    improve : bool, default: False
+        Improve the mesh afterwards: collapse the needles and flip or split
+        the caps that cutting along the curves made (edges shorter than
+        :data:`IMPROVE_EDGE_RATIO` times the input's average edge length,
+        angles above :data:`IMPROVE_MAX_ANGLE`). Curve vertices stay where
+        they are; no face may come to meet another.
 
     Returns
     -------
@@ -366,13 +439,18 @@ def repair_intersections(points, faces) -> RepairResult:
     ------
     InvalidMeshError
         If the mesh is not closed.
+    ValueError
+        For a negative or non-finite tolerance.
     """
     pts, fcs = as_triangle_mesh(points, faces)
     _check_closed(fcs, len(pts), "the mesh")
-    return _corefine(pts, fcs, None, None)
+    clean_pts, clean_fcs, vertex_source, face_source = _without_degenerate(pts, fcs, _tolerance(pts, tolerance))
+    result = _renumbered(_corefine(clean_pts, clean_fcs, None, None), vertex_source, face_source)
+    return _improved(result, average_edge_length(pts, fcs)) if improve else result
 
 
-def boolean_meshes(points_a, faces_a, points_b, faces_b, operation: str) -> RepairResult:
+def boolean_meshes(points_a, faces_a, points_b, faces_b, operation: str, *, tolerance: float = DEFAULT_TOLERANCE,
+                   improve: bool = False) -> RepairResult:
     """Union, intersection or difference of two closed meshes.
 
     Parameters
@@ -383,6 +461,11 @@ def boolean_meshes(points_a, faces_a, points_b, faces_b, operation: str) -> Repa
         Operand B, closed and oriented outward.
     operation : {"union", "intersection", "difference", "reverse_difference"}
         A ∪ B, A ∩ B, A ∖ B or B ∖ A.
+    tolerance : float, default: :data:`DEFAULT_TOLERANCE`
+        Pre-pass on each operand (relative to the bounding-box diagonal of
+        both), see :func:`repair_intersections`.
+    improve : bool, default: False
+        Mesh improvement afterwards, see :func:`repair_intersections`.
 
     Returns
     -------
@@ -392,7 +475,7 @@ def boolean_meshes(points_a, faces_a, points_b, faces_b, operation: str) -> Repa
     Raises
     ------
     ValueError
-        For an unknown operation.
+        For an unknown operation, or a negative or non-finite tolerance.
     InvalidMeshError
         If an operand is not closed.
     """
@@ -402,7 +485,13 @@ def boolean_meshes(points_a, faces_a, points_b, faces_b, operation: str) -> Repa
     pb, fb = as_triangle_mesh(points_b, faces_b)
     _check_closed(fa, len(pa), "mesh A")
     _check_closed(fb, len(pb), "mesh B")
-    pts = np.concatenate([pa, pb])
-    fcs = np.concatenate([fa, fb + len(pa)])
-    group = np.repeat([0, 1], [len(fa), len(fb)])
-    return _corefine(pts, fcs, group, operation)
+    tol = _tolerance(np.concatenate([pa, pb]), tolerance)
+    ca, cb = _without_degenerate(pa, fa, tol), _without_degenerate(pb, fb, tol)
+    pts = np.concatenate([ca[0], cb[0]])
+    fcs = np.concatenate([ca[1], cb[1] + len(ca[0])])
+    group = np.repeat([0, 1], [len(ca[1]), len(cb[1])])
+    result = _renumbered(_corefine(pts, fcs, group, operation), np.concatenate([ca[2], cb[2] + len(pa)]),
+                         np.concatenate([ca[3], cb[3] + len(fa)]))
+    if not improve:
+        return result
+    return _improved(result, average_edge_length(np.concatenate([pa, pb]), np.concatenate([fa, fb + len(pa)])))

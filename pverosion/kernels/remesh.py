@@ -52,7 +52,7 @@ class CollapseResult:
 
 
 @njit(cache=True, error_model="numpy")
-def _star_vertices(faces, indptr, face_ids, v, out):
+def star_vertices(faces, indptr, face_ids, v, out):
     """Distinct neighbours of ``v`` (from its faces) into ``out``; returns how many."""
     n = 0
     for s in range(indptr[v], indptr[v + 1]):
@@ -78,8 +78,9 @@ def _det(a, b, c):
 
 
 @njit(cache=True, error_model="numpy")
-def _collapse_cost(points, faces, indptr, face_ids, a, b, pos):
-    """Volume change (times 6) of merging b into a at ``pos``, or +inf if a face flips."""
+def collapse_cost(points, faces, indptr, face_ids, a, b, pos, tol):
+    """Volume change (times 6) of merging b into a at ``pos``, or +inf if a face flips or degenerates (a face
+    whose height is at most ``tol`` has no orientation to keep)."""
     change = 0.0
     for end in range(2):
         v = a if end == 0 else b
@@ -99,10 +100,66 @@ def _collapse_cost(points, faces, indptr, face_ids, a, b, pos):
             q2 = pos if (i2 == a or i2 == b) else p2
             n_old = v3.cross(v3.sub(p1, p0), v3.sub(p2, p0))
             n_new = v3.cross(v3.sub(q1, q0), v3.sub(q2, q0))
-            if v3.dot(n_old, n_new) <= 1e-3 * v3.norm(n_old) * v3.norm(n_new) or v3.dot(n_new, n_new) == 0.0:
+            span = tol * max(v3.norm(v3.sub(p1, p0)), v3.norm(v3.sub(p2, p1)), v3.norm(v3.sub(p0, p2)))
+            if v3.norm(n_new) <= span or (
+                v3.norm(n_old) > span and v3.dot(n_old, n_new) <= 1e-3 * v3.norm(n_old) * v3.norm(n_new)
+            ):
                 return np.inf
             change += _det(q0, q1, q2) - _det(p0, p1, p2)
     return change
+
+
+@njit(cache=True, error_model="numpy")
+def collapsible(faces, indptr, face_ids, a, b, ring_a, ring_b, ring_c):
+    """Whether edge (a, b) can collapse without breaking the 2-manifold: the edge has two faces, the link
+    condition holds and both opposite vertices keep three neighbours. Returns the neighbour counts of a and b
+    (their distinct neighbours in ``ring_a`` / ``ring_b``), or (-1, -1)."""
+    if indptr[a + 1] - indptr[a] > 128 or indptr[b + 1] - indptr[b] > 128:
+        return -1, -1
+    n_shared = 0
+    opp0 = opp1 = -1
+    for s in range(indptr[a], indptr[a + 1]):
+        f = face_ids[s]
+        if faces[f, 0] == b or faces[f, 1] == b or faces[f, 2] == b:
+            o = faces[f, 0] + faces[f, 1] + faces[f, 2] - a - b
+            if n_shared == 0:
+                opp0 = o
+            else:
+                opp1 = o
+            n_shared += 1
+    if n_shared != 2 or opp0 == opp1:
+        return -1, -1
+    if indptr[opp0 + 1] - indptr[opp0] > 128 or indptr[opp1 + 1] - indptr[opp1] > 128:
+        return -1, -1
+    # link condition: common neighbours are exactly the two opposite vertices
+    na = star_vertices(faces, indptr, face_ids, a, ring_a)
+    nb = star_vertices(faces, indptr, face_ids, b, ring_b)
+    common = 0
+    for i in range(na):
+        for j in range(nb):
+            if ring_a[i] == ring_b[j]:
+                common += 1
+    if common != 2:
+        return -1, -1
+    if (
+        star_vertices(faces, indptr, face_ids, opp0, ring_c) <= 3
+        or star_vertices(faces, indptr, face_ids, opp1, ring_c) <= 3
+    ):
+        return -1, -1
+    return na, nb
+
+
+@njit(cache=True, error_model="numpy")
+def merge_vertices(points, faces, indptr, face_ids, alive, a, b, pos):
+    """Collapse edge (a, b): b merges into a, which moves to ``pos``; the two faces on the edge die."""
+    v3.store(points, a, pos)
+    for s in range(indptr[b], indptr[b + 1]):
+        f = face_ids[s]
+        if faces[f, 0] == a or faces[f, 1] == a or faces[f, 2] == a:
+            alive[f] = False
+        for k in range(3):
+            if faces[f, k] == b:
+                faces[f, k] = a
 
 
 @njit(cache=True, error_model="numpy")
@@ -120,58 +177,21 @@ def _collapse_pass(points, faces, cand_a, cand_b, locked):
         a, b = cand_a[c], cand_b[c]
         if frozen[a] or frozen[b]:
             continue
-        if indptr[a + 1] - indptr[a] > 128 or indptr[b + 1] - indptr[b] > 128:
-            continue
-        # the two faces on the edge and their opposite vertices
-        n_shared = 0
-        opp0 = opp1 = -1
-        for s in range(indptr[a], indptr[a + 1]):
-            f = face_ids[s]
-            if faces[f, 0] == b or faces[f, 1] == b or faces[f, 2] == b:
-                o = faces[f, 0] + faces[f, 1] + faces[f, 2] - a - b
-                if n_shared == 0:
-                    opp0 = o
-                else:
-                    opp1 = o
-                n_shared += 1
-        if n_shared != 2 or opp0 == opp1:
-            continue
-        if indptr[opp0 + 1] - indptr[opp0] > 128 or indptr[opp1 + 1] - indptr[opp1] > 128:
-            continue
-        # link condition: common neighbours are exactly the two opposite vertices
-        na = _star_vertices(faces, indptr, face_ids, a, ring_a)
-        nb = _star_vertices(faces, indptr, face_ids, b, ring_b)
-        common = 0
-        for i in range(na):
-            for j in range(nb):
-                if ring_a[i] == ring_b[j]:
-                    common += 1
-        if common != 2:
-            continue
-        if (
-            _star_vertices(faces, indptr, face_ids, opp0, ring_c) <= 3
-            or _star_vertices(faces, indptr, face_ids, opp1, ring_c) <= 3
-        ):
+        na, nb = collapsible(faces, indptr, face_ids, a, b, ring_a, ring_b, ring_c)
+        if na < 0:
             continue
         pa, pb = v3.row(points, a), v3.row(points, b)
         best = np.inf
         best_pos = pa
         for k in range(3):
             pos = v3.scale(v3.add(pa, pb), 0.5) if k == 0 else (pa if k == 1 else pb)
-            cost = _collapse_cost(points, faces, indptr, face_ids, a, b, pos)
+            cost = collapse_cost(points, faces, indptr, face_ids, a, b, pos, 0.0)
             if cost <= 0.0 and (best == np.inf or cost > best):
                 best = cost
                 best_pos = pos
         if best == np.inf:
             continue
-        v3.store(points, a, best_pos)
-        for s in range(indptr[b], indptr[b + 1]):
-            f = face_ids[s]
-            if faces[f, 0] == a or faces[f, 1] == a or faces[f, 2] == a:
-                alive[f] = False
-            for k in range(3):
-                if faces[f, k] == b:
-                    faces[f, k] = a
+        merge_vertices(points, faces, indptr, face_ids, alive, a, b, best_pos)
         removed[b] = True
         frozen[a] = frozen[b] = True
         for i in range(na):
