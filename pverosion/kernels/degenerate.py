@@ -177,6 +177,9 @@ def _pass(points, faces, on_curve, curve_degree, curve_keys, locked, needle, cap
     split at m: rows (a, b, m)) and the numbers of collapses, flips and splits."""
     n_v, n_f = points.shape[0], faces.shape[0]
     face, kind, corner = _candidates(points, faces, needle, cap_height, cap_cos)
+    if face.shape[0] == 0:
+        return (points, faces, np.ones(n_f, np.bool_), np.arange(n_v), np.arange(n_f), on_curve,
+                np.empty((0, 3), np.int64), 0, 0, 0)
     n_caps = int(np.sum(kind == _CAP))
     pts = np.empty((n_v + n_caps, 3))
     pts[:n_v] = points

@@ -492,6 +492,14 @@ def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Sorted unique rows of an (N, K) integer array and the index of every input row among them (N,)."""
     if len(rows) == 0:
         return rows.copy(), np.zeros(0, np.int64)
+    lo = rows.min(axis=0)
+    span = rows.max(axis=0) - lo + 1
+    if np.prod(span.astype(np.float64)) < 2.0**62:  # one sort of packed keys instead of a sort per column
+        key = np.zeros(len(rows), np.int64)
+        for k in range(rows.shape[1]):
+            key = key * span[k] + (rows[:, k] - lo[k])
+        _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+        return rows[first], inverse.reshape(-1)
     order = np.lexsort(rows.T[::-1])
     ordered = rows[order]
     new = np.r_[True, np.any(ordered[1:] != ordered[:-1], axis=1)]

@@ -45,7 +45,7 @@ from pverosion.kernels.intersection_curves import (
 )
 from pverosion.kernels.mesh_query import bucket_boxes, ray_winding
 from pverosion.kernels.polygon_cut import cut_triangles
-from pverosion.kernels.topology import boundary_edges
+from pverosion.kernels.topology import _incidence, boundary_edges
 from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh
 
 __all__ = ["OPERATIONS", "RepairResult", "boolean_meshes", "repair_intersections"]
@@ -219,37 +219,34 @@ def _root(parent, v):
 
 
 @njit(cache=True)
-def _join_faces(owner_a, owner_b, n_faces):
-    """Connected components (labels 0..C-1 in order of first face) of faces joined by the given pairs."""
-    parent = np.arange(n_faces)
-    for k in range(owner_a.shape[0]):
-        a, b = _root(parent, owner_a[k]), _root(parent, owner_b[k])
-        if a != b:
-            parent[max(a, b)] = min(a, b)
-    label = np.full(n_faces, -1, np.int64)
+def _patches(faces, n_vertices, cut_edges):
+    """Patch of every face (F,), labels 0..C-1 in order of first face: faces connected across edges that are
+    not intersection edges (sorted keys a * V + b, a < b)."""
+    indptr, face_ids, _ = _incidence(faces, n_vertices)
+    parent = np.arange(faces.shape[0])
+    for f in range(faces.shape[0]):
+        for k in range(3):
+            a, b = faces[f, k], faces[f, (k + 1) % 3]
+            if a > b:
+                continue  # every edge from the face where it runs upwards
+            at = np.searchsorted(cut_edges, a * n_vertices + b)
+            if at < cut_edges.shape[0] and cut_edges[at] == a * n_vertices + b:
+                continue
+            for s in range(indptr[a], indptr[a + 1]):
+                g = face_ids[s]
+                if g != f and (faces[g, 0] == b or faces[g, 1] == b or faces[g, 2] == b):
+                    r, q = _root(parent, f), _root(parent, g)
+                    if r != q:
+                        parent[max(r, q)] = min(r, q)
+    label = np.full(faces.shape[0], -1, np.int64)
     count = 0
-    for f in range(n_faces):
+    for f in range(faces.shape[0]):
         r = _root(parent, f)
         if label[r] < 0:
             label[r] = count
             count += 1
         label[f] = label[r]
     return label
-
-
-def _patches(faces: np.ndarray, n_vertices: int, cut_edges: np.ndarray) -> np.ndarray:
-    """Patch of every face (F,): faces connected across edges that are not intersection edges."""
-    a = faces
-    b = np.roll(faces, -1, axis=1)
-    key = (np.minimum(a, b) * n_vertices + np.maximum(a, b)).ravel()
-    owner = np.repeat(np.arange(len(faces)), 3)
-    at = np.minimum(np.searchsorted(cut_edges, key), max(len(cut_edges) - 1, 0))
-    free = cut_edges[at] != key if len(cut_edges) else np.ones(len(key), bool)
-    key, owner = key[free], owner[free]
-    order = np.argsort(key, kind="stable")
-    key, owner = key[order], owner[order]
-    same = key[1:] == key[:-1]
-    return _join_faces(owner[:-1][same], owner[1:][same], len(faces))
 
 
 @njit(cache=True, parallel=True)
@@ -311,14 +308,24 @@ def _patch_windings(points, faces, face_group, reps, groups) -> tuple[np.ndarray
     return out, normal[np.arange(len(reps)), axis] < 0.0
 
 
-def _representatives(points, faces, patch) -> np.ndarray:
+@njit(cache=True)
+def _representatives(points, faces, patch):
     """A face of every patch, in patch order: the one whose normal has the largest z component (its centroid
-    is away from the patch's rim on a coarse patch; rays along z need no second index)."""
-    p0, p1, p2 = points[faces[:, 0]], points[faces[:, 1]], points[faces[:, 2]]
-    up = (p1[:, 0] - p0[:, 0]) * (p2[:, 1] - p0[:, 1]) - (p1[:, 1] - p0[:, 1]) * (p2[:, 0] - p0[:, 0])
-    size = np.abs(p1 - p0).sum(axis=1) * np.abs(p2 - p0).sum(axis=1)  # a stand-in for the area of vertical faces
-    order = np.lexsort((-(np.abs(up) + 1e-6 * size), patch))
-    return order[np.r_[True, patch[order][1:] != patch[order][:-1]]]
+    is away from the patch's rim on a coarse patch; rays along z need no second index), the first such face on
+    a tie."""
+    n_patches = patch.max() + 1 if patch.shape[0] else 0
+    best = np.full(n_patches, -np.inf)
+    out = np.zeros(n_patches, np.int64)
+    for f in range(faces.shape[0]):
+        p0, p1, p2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        ux, uy, uz = points[p1, 0] - points[p0, 0], points[p1, 1] - points[p0, 1], points[p1, 2] - points[p0, 2]
+        vx, vy, vz = points[p2, 0] - points[p0, 0], points[p2, 1] - points[p0, 1], points[p2, 2] - points[p0, 2]
+        size = (abs(ux) + abs(uy) + abs(uz)) * (abs(vx) + abs(vy) + abs(vz))  # stands in for vertical faces' area
+        key = abs(ux * vy - uy * vx) + 1e-6 * size
+        if key > best[patch[f]]:
+            best[patch[f]] = key
+            out[patch[f]] = f
+    return out
 
 
 # --- front ends --------------------------------------------------------------------------------------------------
