@@ -18,6 +18,7 @@ from pverosion.api import (
     voxel_erosion,
     weather,
 )
+from pverosion.kernels.mesh_repair import CoplanarOverlapError
 from pverosion.kernels.validation import InvalidMeshError
 from pverosion.plotting import CURVATURE_CMAP, curvature_cmap
 
@@ -27,6 +28,7 @@ curvature_cmap()  # register the colour map of the papers under CURVATURE_CMAP
 
 __all__ = [
     "CURVATURE_CMAP",
+    "CoplanarOverlapError",
     "InvalidMeshError",
     "__version__",
     "boolean",

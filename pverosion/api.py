@@ -387,6 +387,8 @@ def repair(mesh: pv.PolyData, *, orientation: str = "keep", tolerance: float = D
     ------
     pverosion.InvalidMeshError
         Empty or open mesh, non-triangles, or faces pointing inward.
+    pverosion.CoplanarOverlapError
+        If faces overlap in a common plane (cutting those is not supported).
 
     Examples
     --------
@@ -438,6 +440,8 @@ def boolean(a: pv.PolyData, b: pv.PolyData, operation: str = "union", *, orienta
     pverosion.InvalidMeshError
         Empty or open input, non-triangles, or faces pointing inward; the
         message names the input (mesh A or mesh B).
+    pverosion.CoplanarOverlapError
+        If faces of ``a`` and ``b`` overlap in a common plane (not supported).
 
     Examples
     --------

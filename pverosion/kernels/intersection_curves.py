@@ -309,6 +309,39 @@ def _classify_pairs(p, faces, canon, pairs):
     return status, keys, locs, cases
 
 
+@njit(cache=True)
+def _separated(p, axis, t, u):
+    """Whether a line through an edge of face ``t`` has all of face ``u`` on or beyond it (exact)."""
+    s = _o2(p, axis, t[0], t[1], t[2])
+    for k in range(3):
+        a, b = t[k], t[(k + 1) % 3]
+        if (_o2(p, axis, a, b, u[0]) * s <= 0 and _o2(p, axis, a, b, u[1]) * s <= 0
+                and _o2(p, axis, a, b, u[2]) * s <= 0):
+            return True
+    return False
+
+
+@njit(cache=True, parallel=True)
+def _coplanar_overlaps(p, faces, pairs):
+    """Which coplanar pairs (K, 2) overlap with their interiors (exact, in the projection along the axis of the
+    first face's largest normal component: no edge line of either face separates them)."""
+    out = np.zeros(pairs.shape[0], np.bool_)
+    for i in prange(pairs.shape[0]):
+        t, u = faces[pairs[i, 0]], faces[pairs[i, 1]]
+        axis = _drop_axis(p, t)
+        if _o2(p, axis, t[0], t[1], t[2]) != 0 and _o2(p, axis, u[0], u[1], u[2]) != 0:
+            out[i] = not (_separated(p, axis, t, u) or _separated(p, axis, u, t))
+    return out
+
+
+def coplanar_overlaps(points: np.ndarray, faces: np.ndarray, curves: IntersectionCurves) -> np.ndarray:
+    """The pairs of ``curves.coplanar`` whose faces overlap with their interiors, (K', 2)."""
+    if len(curves.coplanar) == 0:
+        return curves.coplanar
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    return curves.coplanar[_coplanar_overlaps(pts, np.ascontiguousarray(faces, dtype=np.int64), curves.coplanar)]
+
+
 # --- coordinates of the points -------------------------------------------------------------------------------
 
 

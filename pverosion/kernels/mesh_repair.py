@@ -39,6 +39,7 @@ from pverosion.kernels.intersection_curves import (
     VERTEX,
     IntersectionCurves,
     canonical_vertices,
+    coplanar_overlaps,
     curves_of,
     trace_polylines,
     unique_rows,
@@ -48,7 +49,12 @@ from pverosion.kernels.polygon_cut import cut_triangles
 from pverosion.kernels.topology import _incidence, boundary_edges
 from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh
 
-__all__ = ["OPERATIONS", "RepairResult", "boolean_meshes", "repair_intersections"]
+__all__ = ["OPERATIONS", "CoplanarOverlapError", "RepairResult", "boolean_meshes", "repair_intersections"]
+
+
+class CoplanarOverlapError(ValueError):
+    """Faces of the input overlap in a common plane, which the repair and the Booleans do not cut."""
+
 
 OPERATIONS = ("union", "intersection", "difference", "reverse_difference")
 """Boolean operations: A ∪ B, A ∩ B, A ∖ B, B ∖ A."""
@@ -340,6 +346,12 @@ def _corefine(pts, fcs, group, operation) -> RepairResult:
     """Cut the mesh along its intersection curves and keep the patches ``operation`` (None: repair) wants."""
     canon = canonical_vertices(pts)
     curves = curves_of(pts, fcs, group, canon)
+    overlaps = coplanar_overlaps(pts, fcs, curves)
+    if len(overlaps):
+        f, g = overlaps[0]
+        raise CoplanarOverlapError(
+            f"{len(overlaps)} pairs of faces overlap in a common plane (first: faces {f} and {g}); cutting "
+            "coplanar overlaps is not supported: move or turn one part by a tiny amount first")
     faces, source, point_id = _cut_faces(pts, fcs, canon, curves)
     all_points = np.concatenate([pts, curves.points])
     n_all = len(all_points)
@@ -448,6 +460,8 @@ def repair_intersections(points, faces, *, tolerance: float = DEFAULT_TOLERANCE,
         If the mesh is not closed.
     ValueError
         For a negative or non-finite tolerance.
+    CoplanarOverlapError
+        If faces overlap in a common plane (not supported).
     """
     pts, fcs = as_triangle_mesh(points, faces)
     _check_closed(fcs, len(pts), "the mesh")
@@ -485,6 +499,8 @@ def boolean_meshes(points_a, faces_a, points_b, faces_b, operation: str, *, tole
         For an unknown operation, or a negative or non-finite tolerance.
     InvalidMeshError
         If an operand is not closed.
+    CoplanarOverlapError
+        If faces of A and B overlap in a common plane (not supported).
     """
     if operation not in OPERATIONS:
         raise ValueError(f"operation must be one of {OPERATIONS}; got {operation!r}")
