@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import pyvista as pv
 from test_mesh_repair import _reference, _volume, assert_clean
+from test_topology_repair import _closed
 
 from pverosion.kernels.degenerate import remove_degenerate_faces
 from pverosion.kernels.geometry import average_edge_length
@@ -46,12 +47,6 @@ def _heights_and_edges(points, faces):
     return area2 / edges.max(axis=1), edges
 
 
-def _oriented_closed(faces):
-    directed = np.stack([faces, np.roll(faces, -1, axis=1)], axis=-1).reshape(-1, 2)
-    keys = {tuple(e) for e in directed.tolist()}
-    return len(keys) == len(directed) and all((b, a) in keys for a, b in keys)
-
-
 def test_needles_collapse_and_caps_flip_without_changing_the_shape():
     points, faces = _arrays(A)
     points, faces = with_cap(points, faces, 10)
@@ -62,7 +57,7 @@ def test_needles_collapse_and_caps_flip_without_changing_the_shape():
     out = remove_degenerate_faces(points, faces, needle_length=1e-9, cap_height=1e-9)
     assert np.array_equal(points, before[0]) and np.array_equal(faces, before[1])  # inputs untouched
     assert out.collapsed >= 1 and out.flipped >= 1
-    assert _oriented_closed(out.faces)
+    assert _closed(out.faces)
     height, edge = _heights_and_edges(out.points, out.faces)
     assert height.min() > 1e-9 and edge.min() > 1e-9
     assert _volume(out.points, out.faces) == pytest.approx(_volume(points, faces), rel=1e-12)
