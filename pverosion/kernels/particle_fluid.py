@@ -940,6 +940,19 @@ def _keep_plane(planes, plane_face, i, taken, data, f, u, offset, dist, edge):
     return taken
 
 
+@njit(cache=True)
+def _sort_planes(planes, plane_face, i, taken):
+    """Order the first ``taken`` boundary planes of particle ``i`` by face (the order the faces were met in
+    depends on the search box; the push-out and the solid's density sum the planes in order)."""
+    for k in range(1, taken):
+        m = k
+        while m > 0 and plane_face[i, m - 1] > plane_face[i, m]:
+            plane_face[i, m - 1], plane_face[i, m] = plane_face[i, m], plane_face[i, m - 1]
+            for c in range(planes.shape[2]):
+                planes[i, m - 1, c], planes[i, m, c] = planes[i, m, c], planes[i, m - 1, c]
+            m -= 1
+
+
 @njit(cache=True, inline="always")
 def _covered(planes, plane_face, i, taken, data, f, n, s):
     """Whether a plane kept for particle ``i`` on the same wall as face ``f`` (normal ``n``) beats distance ``s``.
@@ -951,6 +964,23 @@ def _covered(planes, plane_face, i, taken, data, f, n, s):
         if ((planes[i, k, 4] < s or (planes[i, k, 4] == s and plane_face[i, k] < f))
                 and v3.dot(n, _corner(data, plane_face[i, k], 3)) > _PLANE_COS):
             return True
+    return False
+
+
+@njit(cache=True)
+def _listed(lo_box, hi_box, grid):
+    """Whether any face is listed in the mesh-grid cells of the box [lo_box, hi_box]."""
+    lo, size, dims, start, keys = grid[1], grid[2], grid[3], grid[4], grid[5]
+    i0, j0, k0, i1, j1, k1 = _cell_box(lo_box, hi_box, lo, size, dims)
+    mask = start.shape[0] - 2
+    for k in range(k0, k1 + 1 if i0 <= i1 else k0):
+        for j in range(j0, j1 + 1):
+            key0, key1, a0, a1, w0, w1 = _row(i0, i1, dims[0] * (j + dims[1] * k), mask, start)
+            for part in range(2):
+                lo_q, hi_q = (a0, a1) if part == 0 else (w0, w1)
+                for q in range(lo_q, hi_q):
+                    if key0 <= keys[q] <= key1:
+                        return True
     return False
 
 
@@ -967,8 +997,10 @@ def _search(p, r, slack, grid, planes, plane_face, i):
     """
     data, lo, size, dims, start, keys, items, firsts, spheres = grid
     reach = PLANE_REACH * r
-    box = reach + slack
-    i0, j0, k0, i1, j1, k1 = _cell_box(v3.sub(p, (box, box, box)), v3.add(p, (box, box, box)), lo, size, dims)
+    # only faces in the cells within reach can give planes or bound the gap below reach; the rest of the box
+    # within reach + slack matters only when those cells are empty (gap reach, or inf when it is empty too)
+    i0, j0, k0, i1, j1, k1 = _cell_box(v3.sub(p, (reach, reach, reach)), v3.add(p, (reach, reach, reach)), lo, size,
+                                       dims)
     mask = start.shape[0] - 2
     gap = np.inf
     taken = 0
@@ -1014,10 +1046,14 @@ def _search(p, r, slack, grid, planes, plane_face, i):
                         if 0.0 < dist < r:
                             u = v3.scale(d, 1.0 / dist)
                             taken = _keep_plane(planes, plane_face, i, taken, data, f, u, v3.dot(u, e), dist, True)
+    box = reach + slack
+    if gap == np.inf and _listed(v3.sub(p, (box, box, box)), v3.add(p, (box, box, box)), grid):
+        gap = reach
     if over_face >= 0 and over_s < 0.0:  # behind the nearest face it is over: to its front
         n = _corner(data, over_face, 3)
         taken = _keep_plane(planes, plane_face, i, taken, data, over_face, n, v3.dot(n, _corner(data, over_face, 0)),
                             0.0, False)
+    _sort_planes(planes, plane_face, i, taken)
     return taken, gap * (1.0 - _GAP_ROUNDING) - _GAP_ROUNDING * r
 
 
