@@ -123,9 +123,26 @@ def test_curvature_erosion_is_local():
         moved = np.any(old != new, axis=1)
         moved_any |= bool(moved.any())
         dist, _ = tree.query(old)
-        assert np.all(dist[moved] <= reach * (1 + 1e-9))
+        # d_influence is measured from the particle's surface (radius r)
+        assert np.all(dist[moved] <= (reach + solver.fluid.params.radius) * (1 + 1e-9))
     assert moved_any
     assert solver.volume() < solver.statistics["volume"][0]
+
+
+@pytest.mark.parametrize("model", ["curvature", "sediment"])
+def test_a_mesh_finer_than_the_particles_erodes(model):
+    # edges (~0.31) shorter than the particle radius: the vertices under a resting particle are about r from its
+    # centre, farther than d_influence, but within it of the particle's surface
+    block = _block()
+    fluid = FluidParameters(radius=0.4)
+    emitter = Emitter(position=(0.0, 0.0, 2.5), direction=(0.3, 0.0, -1.0), radius=1.0, rate=60.0)
+    shear = ShearParameters(erosion_rate=2e-3, critical_stress=20.0)
+    solver = HydraulicSolver(block.points, block.regular_faces, fluid=fluid, emitters=[emitter], model=model,
+                             shear=shear, check_every=0)
+    assert solver.d_influence < fluid.radius
+    solver.run(30)
+    assert len(solver.colliding) > 0
+    assert np.count_nonzero(solver.displacement) > 0
 
 
 def test_sediment_model_balances_volume():

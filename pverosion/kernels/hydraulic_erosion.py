@@ -9,7 +9,8 @@ models:
     Vertices within ``d_influence`` (default: the average edge length e_avg)
     of a colliding particle move by ``H_s^n * e_avg / x * f_distance``, with
     ``f_distance = (d_influence - d_part) / d_influence`` (d_part: distance to
-    the closest colliding particle) and H_s the mean curvature mapped from
+    the closest colliding particle's surface, the sphere of radius r it
+    collides as, so a fine mesh under large particles still erodes) and H_s the mean curvature mapped from
     ``<H_min, H_max>`` onto ``<0, 1>`` (gaps erode slowest, protrusions
     fastest). The direction is the inward vertex normal where H = 0 and the
     unit uniform Laplacian where H reaches H_min or H_max, linearly
@@ -20,7 +21,7 @@ models:
     velocity over its distance to the contact face), the shear stress
     τ = K θ^m and the erosion rate ε = k (τ - τ_c)^a. Above τ_c the particle
     picks up ``ε dt π r²`` of volume from the contact face's vertices (those
-    within ``d_influence`` of it); below τ_c it drops
+    within ``d_influence`` of its surface); below τ_c it drops
     ``min(carried, k (τ_c - τ)^a dt π r²)`` onto them. Each vertex then moves
     along its area-weighted normal by exactly the displacement that changes
     the enclosed volume by its sediment balance (eq. 8.7: the volume of a
@@ -229,7 +230,8 @@ def _exchange(points, faces, pos, vel, contact_face, contact_distance, sediment,
               reach, dt, area, d_min, k, tau_c, big_k, m, a):
     """Erosion/deposition between colliding particles and their contact faces' vertices (in particle order).
 
-    Updates ``sediment`` (N,) and ``pending`` (V,) in place; returns (eroded, deposited) volumes.
+    Only vertices within ``reach`` of the particle's centre take part. Updates ``sediment`` (N,) and ``pending``
+    (V,) in place; returns (eroded, deposited) volumes.
     """
     eroded = 0.0
     deposited = 0.0
@@ -486,7 +488,7 @@ class HydraulicSolver(GuardedMeshSolver):
 
     @property
     def d_influence(self) -> float:
-        """Region of influence of a particle now: ``influence * e_avg``."""
+        """Region of influence of a particle now, from its surface: ``influence * e_avg``."""
         return self.influence * average_edge_length(self.points, self.faces, edges=self._edges)
 
     def _row(self) -> tuple:
@@ -505,7 +507,8 @@ class HydraulicSolver(GuardedMeshSolver):
         self.colliding = fluid.positions[touching]
         e_avg = average_edge_length(self.points, self.faces, edges=self._edges)
         reach = self.influence * e_avg
-        d_part = nearest_particle_distance(self.points, self.colliding, reach)
+        r = fluid.params.radius
+        d_part = np.maximum(nearest_particle_distance(self.points, self.colliding, reach + r) - r, 0.0)
         f = np.where(np.isfinite(d_part), (reach - d_part) / reach, 0.0)
         f[self._fixed] = 0.0
         self.f_distance = f
@@ -540,7 +543,7 @@ class HydraulicSolver(GuardedMeshSolver):
         r = fluid.params.radius
         eroded, deposited = _exchange(
             self.points, self.faces, fluid.positions, fluid.velocities, fluid.contact_face, fluid.contact_distance,
-            fluid.sediment, self.pending, movable, erod, reach, fluid.dt, math.pi * r * r, 0.25 * r,
+            fluid.sediment, self.pending, movable, erod, reach + r, fluid.dt, math.pi * r * r, 0.25 * r,
             shear.erosion_rate, shear.critical_stress, shear.stress_constant, shear.stress_power, shear.rate_power)
         self.eroded += eroded
         self.deposited += deposited
