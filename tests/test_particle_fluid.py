@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import pyvista as pv
 
-from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters, ParticleFluid
+from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters, ParticleFluid, _drift_buckets, _mesh_grid
 
 R = 0.05
 D = 2.0 * R
@@ -413,3 +413,33 @@ def test_density_matches_a_kd_tree_sum_for_clustered_and_scattered_points():
             expected[j] += w
     assert max(len(n) for n in cKDTree(points).query_ball_point(cluster, h)) > 65  # beyond the first capacity
     np.testing.assert_allclose(fluid.density(), expected / params.rest_density, rtol=1e-12, atol=0.0)
+
+
+@pytest.mark.parametrize("share", [0.02, 1.0])  # few faces moved: per-face writes; all of them: dense dilation
+def test_drift_buckets_cover_every_cell_near_a_moved_face(share):
+    sphere = pv.Icosphere(radius=1.0, nsub=3)
+    points = np.asarray(sphere.points, dtype=np.float64)
+    faces = np.asarray(sphere.regular_faces, dtype=np.int64)
+    grid = _mesh_grid(points, faces, 0.05)[0]
+    data, lo, size, dims, start = grid[:5]
+    rng = np.random.default_rng(1)
+    move = np.where(rng.random(len(faces)) < share, rng.uniform(0.01, 0.1, len(faces)), 0.0)
+    box = 0.17
+    drift = _drift_buckets(grid, move, box)
+    mask = len(start) - 2
+    corners = data[:, :9].reshape(-1, 3, 3)
+
+    def exact(grow: float) -> np.ndarray:
+        """Largest move of a face whose box grown by ``grow`` meets a cell of each bucket."""
+        out = np.zeros(mask + 1)
+        for f in np.flatnonzero(move):
+            c0 = np.clip(np.floor((corners[f].min(axis=0) - grow - lo) / size).astype(int), 0, dims - 1)
+            c1 = np.clip(np.floor((corners[f].max(axis=0) + grow - lo) / size).astype(int), 0, dims - 1)
+            i, j, k = np.meshgrid(*[np.arange(a, b + 1) for a, b in zip(c0, c1)], indexing="ij")
+            np.maximum.at(out, (i + dims[0] * (j + dims[1] * k)).ravel() & mask, move[f])
+        return out
+
+    within = exact(box)
+    assert np.count_nonzero(within) > 10
+    assert np.all(drift >= within)
+    assert np.all(drift <= exact(box + size))  # at most one cell of rounding

@@ -1079,27 +1079,57 @@ def _plane_push(p, r, planes, taken, plane_face, i):
 def _drift_buckets(grid, face_move, box):
     """Largest move of a face within ``box`` (along every axis) of the cells of each bucket of the mesh grid: (T,).
 
-    Every moved face writes its move into the buckets of the cells its
-    current bounding box grown by ``box`` meets, so a point's bucket holds
-    the largest move of any face that is now within ``box`` of it (of more,
-    where cells share a bucket).
+    A point's bucket holds at least the largest move of any face that is now
+    within ``box`` of it (more, where cells share a bucket). Whichever costs
+    less: every moved face writes its move into the cells its bounding box
+    grown by ``box`` meets, or it writes into the cells of its own box in a
+    dense grid, which is then dilated by ``box`` rounded up to whole cells.
     """
     data, lo, size, dims, start = grid[0], grid[1], grid[2], grid[3], grid[4]
     mask = start.shape[0] - 2
     out = np.zeros(mask + 1)
+    reach = int(math.ceil(box / size))
+    moved = 0
+    for f in range(data.shape[0]):
+        moved += face_move[f] > 0.0
+    n_cells = dims[0] * dims[1] * dims[2]
+    dense = n_cells * (6 * reach + 4) < moved * (2 * reach + 2) ** 3
+    cells = np.zeros((dims[2], dims[1], dims[0]) if dense else (0, 0, 0))
+    grow = 0.0 if dense else box
     for f in range(data.shape[0]):
         move = face_move[f]
         if move <= 0.0:
             continue
         a, b, c = _corner(data, f, 0), _corner(data, f, 1), _corner(data, f, 2)
-        low = (min(a[0], b[0], c[0]) - box, min(a[1], b[1], c[1]) - box, min(a[2], b[2], c[2]) - box)
-        high = (max(a[0], b[0], c[0]) + box, max(a[1], b[1], c[1]) + box, max(a[2], b[2], c[2]) + box)
+        low = (min(a[0], b[0], c[0]) - grow, min(a[1], b[1], c[1]) - grow, min(a[2], b[2], c[2]) - grow)
+        high = (max(a[0], b[0], c[0]) + grow, max(a[1], b[1], c[1]) + grow, max(a[2], b[2], c[2]) + grow)
         i0, j0, k0, i1, j1, k1 = _cell_box(low, high, lo, size, dims)
         for k in range(k0, k1 + 1 if i0 <= i1 else k0):
             for j in range(j0, j1 + 1):
                 for i in range(i0, i1 + 1):
+                    if dense:
+                        cells[k, j, i] = max(cells[k, j, i], move)
+                    else:
+                        q = (i + dims[0] * (j + dims[1] * k)) & mask
+                        out[q] = max(out[q], move)
+    if dense:
+        for axis in range(3):  # running maximum over 2 reach + 1 cells, one axis after the other
+            source = cells.copy()
+            for k in range(dims[2]):
+                for j in range(dims[1]):
+                    for i in range(dims[0]):
+                        at = (k, j, i)[2 - axis]
+                        top = dims[axis] - 1
+                        best = 0.0
+                        for m in range(max(at - reach, 0), min(at + reach, top) + 1):
+                            best = max(best, source[(m if axis == 2 else k), (m if axis == 1 else j),
+                                                    (m if axis == 0 else i)])
+                        cells[k, j, i] = best
+        for k in range(dims[2]):
+            for j in range(dims[1]):
+                for i in range(dims[0]):
                     q = (i + dims[0] * (j + dims[1] * k)) & mask
-                    out[q] = max(out[q], move)
+                    out[q] = max(out[q], cells[k, j, i])
     return out
 
 
