@@ -1584,23 +1584,50 @@ def _spread(n: int) -> np.ndarray:
     return rows[rows < n]
 
 
+class _Buffers:
+    """Arrays reused from step to step, handed out as views of their first rows.
+
+    A fresh array of megabytes costs about a millisecond per megabyte of
+    page faults on a virtual machine, and the particle count changes from
+    step to step; so each array grows with some headroom and stays.
+    """
+
+    def __init__(self) -> None:
+        self._store: dict[str, np.ndarray] = {}
+
+    def get(self, name: str, n: int, tail: tuple = (), dtype=np.float64) -> np.ndarray:
+        """Uninitialised array of shape ``(n, *tail)``: a view of the first ``n`` rows of the array ``name``."""
+        store = self._store.get(name)
+        if store is None or store.shape[0] < n or store.shape[1:] != tail or store.dtype != dtype:
+            store = np.empty((n + n // 8 + 64, *tail), dtype)
+            self._store[name] = store
+        return store[:n]
+
+
 class _Work:
     """Particle arrays of one step, in cell order (``order``: index of each row in the public arrays)."""
 
-    def __init__(self, n: int, order: np.ndarray, carried: _Work | None = None, rows: np.ndarray | None = None) -> None:
+    def __init__(self, n: int, order: np.ndarray, carried: _Work | None = None, rows: np.ndarray | None = None,
+                 buffers: _Buffers | None = None) -> None:
         """``carried``: the previous step's work, whose searches move along; ``rows[s]``: row of particle
-        ``order[s]`` there (-1: none)."""
+        ``order[s]`` there (-1: none); ``buffers``: where the arrays live (not those of ``carried``)."""
+        get = (buffers or _Buffers()).get
         self.order = order
         self.spread = _spread(n)
-        self.x = np.empty((n, 3))
-        self.v = np.empty((n, 3))
-        self.touched = np.full(n, -1, np.int64)  # face of the latest contact in the step
-        self.anchor = np.full((n, 3), np.nan)  # where the mesh was last searched for boundary planes
-        self.slack = np.zeros(n)  # how far from the anchor, along each axis, that search holds
-        self.gap = np.zeros(n)  # no face nearer to the anchor (see _search)
-        self.planes = np.empty((n, MAX_PLANES, 6))  # unit normal, offset, distance, 1 for an edge or corner
-        self.n_planes = np.zeros(n, np.int64)
-        self.plane_face = np.empty((n, MAX_PLANES), np.int64)
+        self.x = get("x", n, (3,))
+        self.v = get("v", n, (3,))
+        self.touched = get("touched", n, (), np.int64)  # face of the latest contact in the step
+        self.touched.fill(-1)
+        self.anchor = get("anchor", n, (3,))  # where the mesh was last searched for boundary planes
+        self.anchor.fill(np.nan)
+        self.slack = get("slack", n)  # how far from the anchor, along each axis, that search holds
+        self.slack.fill(0.0)
+        self.gap = get("gap", n)  # no face nearer to the anchor (see _search)
+        self.gap.fill(0.0)
+        self.planes = get("planes", n, (MAX_PLANES, 6))  # unit normal, offset, distance, 1 for an edge or corner
+        self.n_planes = get("n_planes", n, (), np.int64)
+        self.n_planes.fill(0)
+        self.plane_face = get("plane_face", n, (MAX_PLANES,), np.int64)
         if carried is not None:
             _carry(rows, *carried.searches(), *self.searches())
 
@@ -1709,7 +1736,9 @@ class ParticleFluid:
         self._advance = np.zeros(len(emitters))
         self._next_id = 0
         self._capacity = 64
-        self._nbr = np.empty((0, self._capacity), np.int32)
+        self._buffers = _Buffers()  # neighbour lists and substep arrays
+        self._work_buffers = (_Buffers(), _Buffers())  # a step's work arrays and its predecessor's, in turn
+        self._parity = 0
         self._grid = _empty_grid()
         self._mesh: tuple | None = None  # points, faces and margin of the last grid build
         self._entries: tuple = ()  # grid entries of every face (CSR) of the last grid build
@@ -1854,7 +1883,8 @@ class ParticleFluid:
         if n:
             # the particles in cell order for the whole step, for locality
             order = _particle_grid(self.positions, self.domain[0], self.params.kernel_radius)[0]
-            work = _Work(n, order, self._last, self._rows[order])
+            self._parity ^= 1  # the other buffers than those of the last work, whose searches carry over
+            work = _Work(n, order, self._last, self._rows[order], self._work_buffers[self._parity])
             _gather(self.positions, self.velocities, work.order, work.x, work.v)
             self._lap(times, "neighbours", clock)
             for _ in range(self.params.substeps):
@@ -1912,18 +1942,21 @@ class ParticleFluid:
         lo, hi = self.domain
         n = len(work.x)
         clock = time.perf_counter()
-        ps = np.empty((n, 3))
+        # positions: three buffers in turn, work.x being one of them after the first substep
+        ps, buffer = [b for b in (self._buffers.get(f"positions{k}", n, (3,)) for k in range(3))
+                      if not np.may_share_memory(b, work.x)][:2]
         _predict(work.x, work.v, np.array(prm.gravity), dt, ps)
-        contact = np.full(n, -1, np.int64)
-        normal = np.zeros((n, 3))
+        contact = self._buffers.get("contact", n, (), np.int64)
+        contact.fill(-1)
+        normal = self._buffers.get("normal", n, (3,))
+        normal.fill(0.0)
         clock = self._lap(times, "solve", clock)
         _collide(ps, work.x, r, self._grid, 0.0, True, self.walls, lo, hi, contact, normal, work.anchor, work.slack,
                  work.gap, work.planes, work.n_planes, work.plane_face, work.spread)
         clock = self._lap(times, "collision", clock)
         nbr, count = self._neighbours(ps)
         clock = self._lap(times, "neighbours", clock)
-        lam = np.empty(n)
-        buffer = np.empty_like(ps)
+        lam = self._buffers.get("lambda", n)
         for it in range(prm.solver_iterations):
             fraction = LAST_WEIGHT if it == prm.solver_iterations - 1 else 1.0
             _lambdas(ps, nbr, count, self._kern, work.planes, work.n_planes, self.walls, lo, hi, lam)
@@ -1941,14 +1974,12 @@ class ParticleFluid:
         self._lap(times, "solve", clock)
 
     def _neighbours(self, ps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Neighbour lists (N, capacity) int32 (a reused buffer) and counts of the points ``ps``."""
+        """Neighbour lists (N, capacity) int32 and counts (N,) of the points ``ps``, in buffers reused by the next call."""
         h = self.params.kernel_radius
         grid = _particle_grid(ps, self.domain[0], h)
-        count = np.empty(len(ps), np.int64)
+        count = self._buffers.get("count", len(ps), (), np.int64)
         while True:
-            if self._nbr.shape[0] < len(ps) or self._nbr.shape[1] != self._capacity:
-                self._nbr = np.empty((max(len(ps), self._nbr.shape[0]), self._capacity), np.int32)
-            nbr = self._nbr[:len(ps)]
+            nbr = self._buffers.get("nbr", len(ps), (self._capacity,), np.int32)
             _neighbour_lists(ps, grid, h, nbr, count)
             most = int(count.max())
             if most <= self._capacity:
