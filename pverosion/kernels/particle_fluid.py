@@ -1088,7 +1088,7 @@ def _drift_buckets(grid, face_move, box):
     data, lo, size, dims, start = grid[0], grid[1], grid[2], grid[3], grid[4]
     mask = start.shape[0] - 2
     out = np.zeros(mask + 1)
-    reach = int(math.ceil(box / size))
+    reach = math.ceil(box / size)
     moved = 0
     for f in range(data.shape[0]):
         moved += face_move[f] > 0.0
