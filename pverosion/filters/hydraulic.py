@@ -99,8 +99,8 @@ class HydraulicErosion(MeshSolverFilter):
         Param("max_particles", 250_000, "Emitters pause at this many particles.", minimum=1),
         Param("power", 1.0, "Power n of the shifted curvature (curvature model).", minimum=1.0),
         Param("step_divisor", 10.0, "Divisor x: a vertex moves at most e_avg / x per iteration.", minimum=1e-6),
-        Param("influence", 1.0, "Region of influence d_influence of a particle, in average edge lengths.",
-              minimum=1e-6),
+        Param("influence", 1.0, "Region of influence d_influence of a particle (from its surface), in average "
+              "edge lengths.", minimum=1e-6),
         Param("erosion_rate", 1e-3, "k of the erosion rate k (tau - tau_c)^a (sediment model).", minimum=0.0),
         Param("critical_stress", 5.0, "Critical shear stress tau_c (sediment model).", minimum=0.0),
         Param("stress_constant", 1.0, "K of the shear stress K theta^m (sediment model).", minimum=0.0),

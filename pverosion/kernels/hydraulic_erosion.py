@@ -353,7 +353,8 @@ class HydraulicSolver(GuardedMeshSolver):
     step_divisor : float, default: 10.0
         x: the largest displacement per iteration is ``e_avg / x`` (both models).
     influence : float, default: 1.0
-        d_influence in units of the average edge length.
+        d_influence in units of the average edge length, measured from the
+        surface of a colliding particle (its centre plus the radius r).
     shear : ShearParameters, optional
         Constants of the sediment model.
     erodibility : array_like (V,), callable, MaterialField or None
