@@ -910,8 +910,9 @@ def _keep_plane(planes, plane_face, i, taken, data, f, u, offset, dist, edge):
 
     A face turned less than 30 degrees from a plane already kept replaces it
     when nearer; otherwise it takes a free slot, or the farthest one's when
-    nearer (ties go to the lower face index, so the visiting order does not
-    matter). Returns the number of planes kept.
+    nearer (ties go to the lower face index; the visiting order is fixed by
+    the grid, and :func:`_sort_planes` orders the result). Returns the
+    number of planes kept.
     """
     n = _corner(data, f, 3)
     slot = -1
