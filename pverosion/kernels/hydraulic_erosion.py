@@ -10,9 +10,9 @@ models:
     of a colliding particle move by ``H_s^n * e_avg / x * f_distance``, with
     ``f_distance = (d_influence - d_part) / d_influence`` (d_part: distance to
     the closest colliding particle's surface, the sphere of radius r it
-    collides as, so a fine mesh under large particles still erodes) and H_s the mean curvature mapped from
-    ``<H_min, H_max>`` onto ``<0, 1>`` (gaps erode slowest, protrusions
-    fastest). The direction is the inward vertex normal where H = 0 and the
+    collides as, so a fine mesh under large particles still erodes) and H_s
+    the mean curvature mapped from ``<H_min, H_max>`` onto ``<0, 1>`` (gaps
+    erode slowest, protrusions fastest). The direction is the inward vertex normal where H = 0 and the
     unit uniform Laplacian where H reaches H_min or H_max, linearly
     interpolated (and made unit length) in between. No other vertex moves.
 
