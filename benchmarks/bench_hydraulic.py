@@ -9,7 +9,7 @@ Scenes:
 
 Each scene is warmed up (numba compilation, splash), then run for the
 timed iterations in one call; the JSON gives medians of the whole iteration
-and of its parts: fluid step (neighbours + density solve + emission/drains),
+and of its parts: fluid step (neighbours + density solve + emission/drains, the first two also apart),
 collision (swept tests and push-out against the mesh, inside the fluid
 step), affected vertices, curvature (with the Laplacian), displacement (with
 mesh improvement and the collision grid update). The self-intersection
@@ -129,7 +129,8 @@ def measure(solver: HydraulicSolver, iterations: int, warmup: int) -> dict:
         "vertices": len(solver.points), "faces": len(solver.faces),
         "particles_mean": round(float(np.mean(counts)), 1), "colliding_last": len(solver.colliding),
         "iteration_ms": med(walls), "iteration_mean_ms": round(1000.0 * float(np.mean(walls)), 3),
-        "fluid_ms": med(fluid_step), "collision_ms": med(fp["collision"]),
+        "fluid_ms": med(fluid_step), "fluid_neighbours_ms": med(fp["neighbours"]), "fluid_solve_ms": med(fp["solve"]),
+        "collision_ms": med(fp["collision"]),
         "affected_vertices_ms": med(sp.get("affected", [])), "curvature_ms": med(sp.get("curvature", [])),
         "displacement_ms": med(sp.get("displacement", [])), "guard_ms_when_run": med(sp.get("guard", [])),
         "check_every": solver.check_every, "iterations": len(walls),
