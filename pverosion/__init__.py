@@ -4,42 +4,67 @@ Every process is a VTK filter (:mod:`pverosion.filters`) over array kernels
 (:mod:`pverosion.kernels`), with front ends as functions (``pverosion.curvature``),
 a PyVista accessor (``mesh.erosion.curvature()``), the ``pverosion`` command line,
 and ParaView plugins.
+
+Importing the package is cheap: the front ends, and with them VTK, numba and
+matplotlib, load on first use of a name below.
 """
 
-from pverosion.api import (
-    boolean,
-    curvature,
-    freeze_thaw,
-    hydraulic_erosion,
-    materials_from_volume,
-    repair,
-    sample_materials,
-    shard_graph,
-    voxel_erosion,
-    weather,
-)
-from pverosion.kernels.mesh_repair import CoplanarOverlapError
-from pverosion.kernels.validation import InvalidMeshError
-from pverosion.plotting import CURVATURE_CMAP, curvature_cmap
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING
+
+from pverosion._runtime import configure_environment
+
+configure_environment()  # before numba starts its threads
 
 __version__ = "0.1.0"
 
-curvature_cmap()  # register the colour map of the papers under CURVATURE_CMAP
+_LAZY = {
+    "boolean": "pverosion.api",
+    "curvature": "pverosion.api",
+    "freeze_thaw": "pverosion.api",
+    "hydraulic_erosion": "pverosion.api",
+    "materials_from_volume": "pverosion.api",
+    "repair": "pverosion.api",
+    "sample_materials": "pverosion.api",
+    "shard_graph": "pverosion.api",
+    "voxel_erosion": "pverosion.api",
+    "weather": "pverosion.api",
+    "CoplanarOverlapError": "pverosion.kernels.mesh_repair",
+    "InvalidMeshError": "pverosion.kernels.validation",
+    "CURVATURE_CMAP": "pverosion.plotting",  # importing pverosion.plotting registers the colour map
+    "curvature_cmap": "pverosion.plotting",
+}
 
-__all__ = [
-    "CURVATURE_CMAP",
-    "CoplanarOverlapError",
-    "InvalidMeshError",
-    "__version__",
-    "boolean",
-    "curvature",
-    "curvature_cmap",
-    "freeze_thaw",
-    "hydraulic_erosion",
-    "materials_from_volume",
-    "repair",
-    "sample_materials",
-    "shard_graph",
-    "voxel_erosion",
-    "weather",
-]
+__all__ = ["__version__", *sorted(_LAZY, key=str.lower)]
+
+if TYPE_CHECKING:
+    from pverosion.api import (
+        boolean,
+        curvature,
+        freeze_thaw,
+        hydraulic_erosion,
+        materials_from_volume,
+        repair,
+        sample_materials,
+        shard_graph,
+        voxel_erosion,
+        weather,
+    )
+    from pverosion.kernels.mesh_repair import CoplanarOverlapError
+    from pverosion.kernels.validation import InvalidMeshError
+    from pverosion.plotting import CURVATURE_CMAP, curvature_cmap
+
+
+def __getattr__(name: str):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'pverosion' has no attribute {name!r}")
+    value = getattr(import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

@@ -9,10 +9,14 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Collection
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from pverosion.filters import ALL_FILTERS
-from pverosion.filters.base import ErosionFilter
+from pverosion._stages import STAGE_INDEX, load_stage
+
+if TYPE_CHECKING:
+    from pverosion.filters.base import ErosionFilter
 
 __all__ = ["build_parser", "main"]
 
@@ -33,8 +37,15 @@ def _port_label(name: str) -> str:
     return name.removeprefix("Input") or name
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``pverosion`` argument parser."""
+def build_parser(*, stages: Collection[str] | None = None) -> argparse.ArgumentParser:
+    """The ``pverosion`` argument parser.
+
+    Parameters
+    ----------
+    stages : collection of str, optional
+        Stage subcommands to give their options (default: all); the others are
+        listed by name only, so their filter modules are not imported.
+    """
     parser = argparse.ArgumentParser(prog="pverosion", description="Erosion simulation on 3D meshes and voxel fields.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     demo = sub.add_parser("demo", help="weather a cube into a sphere; write the .pvd series and .png figures")
@@ -51,7 +62,17 @@ def build_parser() -> argparse.ArgumentParser:
     batch.add_argument("--threads-per-job", type=int, metavar="K",
                        help="numba threads per job (default: cores / workers locally, 1 on a remote scheduler)")
     batch.add_argument("--serial", action="store_true", help="run the jobs one by one in this process, without Dask")
-    for filter_cls in ALL_FILTERS:
+    warmup = sub.add_parser("warmup", help="compile the stages' kernels now, in parallel processes (once per install)",
+                            description="Run each stage once on a tiny procedural input so that numba compiles "
+                            "and caches its kernels; later runs load them from the cache.")
+    warmup.add_argument("stages", nargs="*", metavar="STAGE",
+                        help=f"stages to compile (default: all): {', '.join(s.command for s in STAGE_INDEX)}")
+    warmup.add_argument("--processes", type=int, metavar="N", help="parallel processes (default: one per core)")
+    for stage in STAGE_INDEX:
+        if stages is not None and stage.command not in stages:
+            sub.add_parser(stage.command, help=stage.label)
+            continue
+        filter_cls = load_stage(stage.command)
         cmd = sub.add_parser(filter_cls.command_name(), help=filter_cls.LABEL, description=filter_cls.__doc__,
                              formatter_class=argparse.RawDescriptionHelpFormatter)
         if filter_cls.INPUT_TYPE == "vtkImageData":
@@ -160,11 +181,20 @@ def _run_stage(args: argparse.Namespace) -> None:
         print(f"screenshot -> {args.screenshot}")
 
 
+def _run_warmup(args: argparse.Namespace) -> None:
+    from pverosion.warmup import warm_up
+
+    for stage, seconds in warm_up(args.stages or None, processes=args.processes).items():
+        print(f"warmup {stage}: {seconds:.1f} s")
+
+
 def _run_demo(args: argparse.Namespace) -> None:
     import numpy as np
 
     from pverosion.scenes import cube_to_sphere
+    from pverosion.warmup import warm_up
 
+    warm_up(["weather"])
     out = args.output_dir
     run = cube_to_sphere(out)
     print("demo: weathering a 10 x 10 per face cube into a sphere (Skorkovská 2019, Figure 6)")
@@ -192,11 +222,15 @@ def _run_batch(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``pverosion`` console script; returns the exit status."""
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    command = next((arg for arg in argv if not arg.startswith("-")), None)
+    parser = build_parser(stages={command})  # only the chosen stage's filter module is imported
     args = parser.parse_args(argv)
     try:
         if args.command == "demo":
             _run_demo(args)
+        elif args.command == "warmup":
+            _run_warmup(args)
         elif args.command == "batch":
             return _run_batch(args)
         else:

@@ -29,7 +29,8 @@ def curvature_cmap() -> LinearSegmentedColormap:
     """The curvature colour map: blue for H < 0, green for H = 0, red for H > 0.
 
     It is registered with matplotlib (and so usable in PyVista) as
-    ``"pverosion_curvature"`` when pverosion is imported. Use it with colour
+    ``"pverosion_curvature"`` when :mod:`pverosion.plotting` is imported (which
+    using ``pverosion.CURVATURE_CMAP`` does). Use it with colour
     limits symmetric about zero so that green marks flat regions.
     """
     if CURVATURE_CMAP not in matplotlib.colormaps:
@@ -244,3 +245,6 @@ def plot_slices(image, path: str | os.PathLike, *, scalars: str = "hardness", ti
     if title:
         fig.suptitle(title)
     return save_figure(fig, path)
+
+
+curvature_cmap()  # register the colour map under CURVATURE_CMAP

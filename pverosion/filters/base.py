@@ -21,6 +21,7 @@ from vtkmodules.vtkCommonCore import vtkIdTypeArray, vtkObject, vtkStringArray
 from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkMultiBlockDataSet, vtkPolyData
 from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline as SDDP
 
+from pverosion._runtime import stage_run
 from pverosion.kernels.validation import InvalidMeshError
 
 __all__ = [
@@ -183,7 +184,8 @@ class ErosionFilter(VTKPythonAlgorithmBase):
             inputs = [self.GetInputData(in_info, port, 0) for port in range(len(self.INPUT_PORTS))]
             out = self.GetOutputData(out_info, 0)
             self.UpdateProgress(0.0)
-            self.execute(*inputs, out)
+            with stage_run(self.command_name(), inputs[0].GetNumberOfPoints()):  # threads by size; compile notice
+                self.execute(*inputs, out)
             self.UpdateProgress(1.0)
         except Exception as exc:  # noqa: BLE001 - kept and re-raised by run()
             self._error = exc

@@ -1,0 +1,138 @@
+"""Threads and first-run compilation: what every stage run goes through.
+
+- :func:`configure_environment` runs when :mod:`pverosion` is imported, before
+  numba starts its thread pool: OpenMP threads that wait for work sleep instead
+  of spinning (``OMP_WAIT_POLICY=PASSIVE``, ``KMP_BLOCKTIME=0``), so a competing
+  process on the same cores costs time in proportion, not tenfold. Variables the
+  user has set are left alone.
+- :func:`stage_run` wraps one stage's execution: it caps numba's threads for
+  small inputs (respecting ``NUMBA_NUM_THREADS`` and :func:`numba.set_num_threads`)
+  and, when numba has to compile kernels (an empty cache: a fresh install, a new
+  numba version), says so once on stderr with the time it took.
+
+This module does not import numba; it only uses it once a stage runs.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import threading
+import time
+from collections.abc import Iterator, MutableMapping
+from contextlib import ExitStack, contextmanager
+from typing import TextIO
+
+__all__ = ["POINTS_PER_THREAD", "THREAD_ENVIRONMENT", "configure_environment", "stage_run", "threads_for"]
+
+THREAD_ENVIRONMENT: dict[str, str] = {"OMP_WAIT_POLICY": "PASSIVE", "KMP_BLOCKTIME": "0"}
+"""Defaults set by :func:`configure_environment` (OpenMP threads sleep when idle)."""
+
+POINTS_PER_THREAD = 8192
+"""Input points per numba thread: smaller inputs run on fewer threads."""
+
+_state = threading.local()  # .active: a stage_run is in progress in this thread (stages do not nest)
+
+
+def configure_environment(environ: MutableMapping[str, str] | None = None) -> dict[str, str]:
+    """Set the :data:`THREAD_ENVIRONMENT` defaults that are not set yet.
+
+    They take effect only if numba has not started its threads yet, which is
+    the case when :mod:`pverosion` is imported before any parallel kernel runs.
+
+    Parameters
+    ----------
+    environ : mutable mapping, optional
+        The environment to update (default: ``os.environ``).
+
+    Returns
+    -------
+    dict
+        The variables this call set, with their values.
+    """
+    environ = os.environ if environ is None else environ
+    added = {name: value for name, value in THREAD_ENVIRONMENT.items() if name not in environ}
+    environ.update(added)
+    return added
+
+
+def threads_for(n_points: int, available: int) -> int:
+    """Numba threads for an input of ``n_points`` points: ``n_points / POINTS_PER_THREAD``, in ``[1, available]``.
+
+    Parameters
+    ----------
+    n_points : int
+        Size of the input (points of a surface or of a volume); 0 when unknown.
+    available : int
+        The threads numba would use otherwise (``numba.get_num_threads()``).
+    """
+    if n_points <= 0:
+        return max(1, available)
+    return max(1, min(available, -(-int(n_points) // POINTS_PER_THREAD)))
+
+
+def _cache_location() -> str:
+    from numba.core import config
+
+    return config.CACHE_DIR or "the package's __pycache__ folders"
+
+
+def _compile_notice(stage: str, stream: TextIO):
+    """A numba event listener that announces the first compilation and sums the compile time."""
+    from numba.core import event
+
+    class CompileNotice(event.Listener):
+        def __init__(self):
+            self.depth = 0
+            self.started = 0.0
+            self.seconds = 0.0
+
+        def on_start(self, ev):
+            if self.depth == 0:
+                if self.seconds == 0.0:
+                    print(f"pverosion {stage}: compiling kernels, once per install (cached in {_cache_location()}) ...",
+                          file=stream, flush=True)
+                self.started = time.perf_counter()
+            self.depth += 1
+
+        def on_end(self, ev):
+            self.depth -= 1
+            if self.depth == 0:
+                self.seconds += time.perf_counter() - self.started
+
+    return CompileNotice()
+
+
+@contextmanager
+def stage_run(stage: str, n_points: int = 0, *, stream: TextIO | None = None) -> Iterator[None]:
+    """Run one stage: fewer numba threads for small inputs, a notice when kernels compile.
+
+    Parameters
+    ----------
+    stage : str
+        Name shown in the notice (the stage's command name).
+    n_points : int, default: 0
+        Size of the input, for :func:`threads_for`; 0 keeps the thread count.
+    stream : text stream, optional
+        Where the notice goes (default: ``sys.stderr`` at the time of the call).
+    """
+    if getattr(_state, "active", False):  # a stage inside a stage: the outer one reports
+        yield
+        return
+    import numba
+    from numba.core import event
+
+    stream = sys.stderr if stream is None else stream
+    notice = _compile_notice(stage, stream)
+    previous = numba.get_num_threads()
+    _state.active = True
+    try:
+        with ExitStack() as stack:
+            stack.enter_context(event.install_listener("numba:compile", notice))
+            numba.set_num_threads(threads_for(n_points, previous))
+            stack.callback(numba.set_num_threads, previous)
+            yield
+    finally:
+        _state.active = False
+        if notice.seconds > 0.0:
+            print(f"pverosion {stage}: compiled kernels in {notice.seconds:.1f} s", file=stream, flush=True)

@@ -1,0 +1,152 @@
+"""Start-up: lazy imports, the stage index, threads, the compile notice and ``pverosion warmup``."""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numba
+import pytest
+
+import pverosion
+from pverosion import _runtime
+from pverosion._runtime import POINTS_PER_THREAD, configure_environment, stage_run, threads_for
+from pverosion._stages import STAGE_INDEX, load_stage
+from pverosion.cli import main
+from pverosion.warmup import WARMUPS, warm_up
+
+ROOT = Path(__file__).resolve().parents[1]
+HEAVY = ("numba", "dask", "distributed", "matplotlib", "vtkmodules", "pyvista", "scipy")
+
+
+def _loaded_after(code: str) -> dict:
+    """Run ``code`` in a fresh interpreter; which of HEAVY it loaded, and what it printed."""
+    probe = f"{code}\nimport json, sys\nprint(json.dumps({{m: m in sys.modules for m in {HEAVY!r}}}))"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, check=True)
+    *printed, last = done.stdout.strip().splitlines()
+    return {"loaded": {m for m, yes in json.loads(last).items() if yes}, "stdout": "\n".join(printed)}
+
+
+def test_import_loads_no_kernels_dask_or_matplotlib():
+    assert _loaded_after("import pverosion")["loaded"] == set()
+
+
+def test_help_loads_no_kernels_and_lists_every_stage():
+    run = _loaded_after("from pverosion.cli import main\ntry:\n    main(['--help'])\nexcept SystemExit:\n    pass")
+    assert run["loaded"] == set()
+    for stage in STAGE_INDEX:
+        assert f"{stage.command} " in run["stdout"] or f"{stage.command}\n" in run["stdout"]
+    assert "warmup" in run["stdout"]
+
+
+def test_one_stage_imports_only_its_filter():
+    run = _loaded_after("from pverosion.cli import build_parser\nbuild_parser(stages={'curvature'})\n"
+                        "import sys\nprint('pverosion.filters.repair' in sys.modules, 'pverosion.kernels.predicates' in sys.modules)")
+    assert run["stdout"] == "False False"
+    assert "numba" in run["loaded"]
+
+
+def test_every_public_name_resolves():
+    for name in pverosion.__all__:
+        assert getattr(pverosion, name) is not None
+    assert set(pverosion.__all__) <= set(dir(pverosion))
+    with pytest.raises(AttributeError, match="no attribute 'nonsense'"):
+        pverosion.nonsense  # noqa: B018
+    import pverosion.kernels as kernels
+
+    for name in kernels.__all__:
+        assert getattr(kernels, name).__module__.startswith("pverosion.kernels")
+    with pytest.raises(AttributeError):
+        kernels.nonsense  # noqa: B018
+
+
+def test_colour_map_is_registered_on_use():
+    import matplotlib
+
+    assert pverosion.CURVATURE_CMAP in matplotlib.colormaps
+
+
+def test_stage_index_matches_the_filters():
+    from pverosion.filters import ALL_FILTERS
+
+    assert [s.command for s in STAGE_INDEX] == [cls.command_name() for cls in ALL_FILTERS]
+    for stage, cls in zip(STAGE_INDEX, ALL_FILTERS):
+        assert load_stage(stage.command) is cls
+        assert stage.label == cls.LABEL
+    assert set(WARMUPS) == {s.command for s in STAGE_INDEX}
+    with pytest.raises(ValueError, match="unknown stage 'erode'"):
+        load_stage("erode")
+
+
+def test_stage_help_still_has_the_stage_options(capsys):
+    with pytest.raises(SystemExit):
+        main(["curvature", "--help"])
+    assert "--orientation" in capsys.readouterr().out
+
+
+def test_environment_defaults_leave_the_users_settings():
+    env = {"OMP_WAIT_POLICY": "ACTIVE"}
+    added = configure_environment(env)
+    assert env == {"OMP_WAIT_POLICY": "ACTIVE", "KMP_BLOCKTIME": "0"}
+    assert added == {"KMP_BLOCKTIME": "0"}
+    assert configure_environment(env) == {}
+    assert os.environ["OMP_WAIT_POLICY"]  # set (by the import of pverosion, or by the user)
+
+
+@pytest.mark.parametrize(("n_points", "available", "expected"), [
+    (0, 4, 4), (1, 4, 1), (POINTS_PER_THREAD, 4, 1), (POINTS_PER_THREAD + 1, 4, 2),
+    (3 * POINTS_PER_THREAD, 2, 2), (10**7, 1, 1),
+])
+def test_threads_for_small_inputs(n_points, available, expected):
+    assert threads_for(n_points, available) == expected
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two numba threads")
+def test_stage_run_caps_threads_for_small_inputs_and_restores_them():
+    before = numba.get_num_threads()
+    with stage_run("test", 10, stream=io.StringIO()):
+        assert numba.get_num_threads() == 1
+    assert numba.get_num_threads() == before
+    with stage_run("test", 10**7, stream=io.StringIO()):
+        assert numba.get_num_threads() == before
+
+
+def test_compile_notice_is_shown_once_when_kernels_compile():
+    @numba.njit
+    def triple(x):
+        return 3 * x
+
+    out = io.StringIO()
+    with stage_run("test", stream=out):
+        assert triple(2) == 6
+        assert triple(5) == 15  # the same signature: no second notice
+    text = out.getvalue()
+    assert text.count("compiling kernels, once per install") == 1
+    assert "pverosion test: compiled kernels in" in text
+    quiet = io.StringIO()
+    with stage_run("test", stream=quiet):
+        assert triple(4) == 12
+    assert quiet.getvalue() == ""
+    assert not getattr(_runtime._state, "active", False)
+
+
+def test_warm_up_runs_the_chosen_stages(capsys):
+    seconds = warm_up(["curvature", "curvature"], processes=1)
+    assert list(seconds) == ["curvature"] and seconds["curvature"] > 0
+    assert main(["warmup", "curvature", "--processes", "1"]) == 0
+    assert "warmup curvature:" in capsys.readouterr().out
+    with pytest.raises(ValueError, match="unknown stage"):
+        warm_up(["erode"])
+    with pytest.raises(ValueError, match="processes"):
+        warm_up(["curvature"], processes=0)
+
+
+def test_warm_up_in_parallel_processes():
+    seconds = warm_up(["curvature", "materials"], processes=2)
+    assert set(seconds) == {"curvature", "materials"}
+    assert all(s > 0 for s in seconds.values())
