@@ -6,7 +6,7 @@ repeat runs the sweep serially in this process (numba on all cores) and on a
 fresh 2-worker LocalCluster (one numba thread per worker), each into a new
 folder; cluster start-up and warm-up are timed apart and excluded from the ratio. Prints JSON; the target is ratio <= 1.1.
 
-Usage: python benchmarks/bench_batch.py [--repeat 3]
+Usage: python benchmarks/bench_batch.py [--repeat 3] [--load N]
 """
 
 from __future__ import annotations
@@ -22,12 +22,15 @@ from pathlib import Path
 from pverosion.batch import load_scenario, run_batch
 from pverosion.batch.job import warm_up
 
+from _load import add_load_option, run
+
 SCENARIO = Path(__file__).resolve().parents[1] / "pipelines" / "batch_rocks.toml"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
+    add_load_option(parser)
     args = parser.parse_args()
     scenario = load_scenario(SCENARIO)
     warm_up()
@@ -57,4 +60,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main, timings=("serial_s", "cluster_2_workers_s"))

@@ -3,7 +3,7 @@
 Prints one JSON object. Timings are medians over interleaved repetitions
 (numba compilation excluded by a warm-up call).
 
-    python benchmarks/bench_curvature.py [--data ../shared/data/bunny.ply] [--repeat 31]
+    python benchmarks/bench_curvature.py [--data ../shared/data/bunny.ply] [--repeat 31] [--load N]
 """
 
 from __future__ import annotations
@@ -19,6 +19,8 @@ import pyvista as pv
 import pverosion
 from pverosion.kernels import orient_faces, principal_curvatures
 
+from _load import add_load_option, run
+
 DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
 
 
@@ -26,6 +28,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DEFAULT)
     parser.add_argument("--repeat", type=int, default=31)
+    add_load_option(parser)
     args = parser.parse_args()
 
     mesh = pv.read(args.data)
@@ -62,4 +65,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main, timings=("median_ms.pverosion_kernel", "median_ms.pverosion_full", "median_ms.vtk_curvatures"))

@@ -19,7 +19,7 @@ iteration leaves it out, the mean iteration spreads it over all.
 Each scene is run ``--repeats`` times (default 3), the scenes in turn; the
 JSON gives the run with the median iteration time and every run's.
 
-Usage: ``python benchmarks/bench_hydraulic.py [--iterations 30] [--warmup 10] [--repeats 3] [--scene bunny|canyon|all]``
+Usage: ``python benchmarks/bench_hydraulic.py [--iterations 30] [--warmup 10] [--repeats 3] [--scene bunny|canyon|all] [--load N]``
 """
 
 from __future__ import annotations
@@ -36,6 +36,8 @@ from pverosion.hydraulic_scenes import canyon_scene, pour_scene
 from pverosion.kernels.hydraulic_erosion import HydraulicSolver
 from pverosion.kernels.mesh_query import TriangleIndex, point_inside
 from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters
+
+from _load import add_load_option, run
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 PAPER_MS = {"bunny": 291.520, "canyon": 309.441}
@@ -145,6 +147,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3,
                         help="runs of each scene, taken in turn; the figures are those of the run with the median "
                              "iteration time")
+    add_load_option(parser)
     args = parser.parse_args()
     if args.repeats < 1:
         parser.error("--repeats must be >= 1")
@@ -167,4 +170,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main, timings=("bunny.iteration_ms", "canyon.iteration_ms"))

@@ -44,6 +44,8 @@ from pverosion.kernels.geometry import signed_volume
 from pverosion.kernels.intersection_curves import intersection_curves, trace_polylines
 from pverosion.kernels.mesh_repair import boolean_meshes, repair_intersections
 
+from _load import add_load_option, run
+
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 TWELVE_TARGET_MS = 500.0
 UNION_RATIO_TARGET = 4.0
@@ -175,6 +177,7 @@ def main() -> None:
                         choices=["all", "two_spheres", "cuboids", "cube_sphere", "self_intersection", "twelve_objects"])
     parser.add_argument("--vtk-limit", type=float, default=60.0,
                         help="seconds VTK's Boolean filter may take per scene (0: skip it)")
+    add_load_option(parser)
     args = parser.parse_args()
     scenes = {
         "two_spheres": lambda: two_mesh_union("two_spheres", *two_spheres(), args.repeats, args.vtk_limit),
@@ -188,4 +191,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main, timings=("two_spheres.union_ms", "cuboids.union_ms", "cube_sphere.union_ms", "self_intersection.repair_ms", "twelve_objects.detection_and_repair_ms"))

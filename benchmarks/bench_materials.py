@@ -7,7 +7,7 @@ count, height, bytes at 24 B/node next to the volume's bytes, the agreement (%) 
 material with the thresholded voxels at the voxel centres, and the classification rate for 1M
 uniformly random points in the volume's box (median of --repeat).
 
-    python benchmarks/bench_materials.py [--volume ../shared/data/HeadMRVolume.mhd] [--repeat 5]
+    python benchmarks/bench_materials.py [--volume ../shared/data/HeadMRVolume.mhd] [--repeat 5] [--load N]
 """
 
 from __future__ import annotations
@@ -21,6 +21,8 @@ import numpy as np
 
 import pverosion
 from pverosion.io import read_image
+
+from _load import add_load_option, run
 
 DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "HeadMRVolume.mhd"
 THRESHOLDS = (40.0, 100.0, 160.0)
@@ -40,6 +42,7 @@ def main() -> None:
     parser.add_argument("--volume", type=Path, default=DEFAULT)
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--seed", type=int, default=0)
+    add_load_option(parser)
     args = parser.parse_args()
 
     head = read_image(args.volume)
@@ -78,4 +81,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main, timings=("c_bsp.build_ms", "c_bsp.classify_1m_points_s", "s_bsp.build_ms"))

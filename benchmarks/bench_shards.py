@@ -24,6 +24,8 @@ from pverosion.kernels.seed_patterns import inside_mesh, uniform_seeds
 from pverosion.kernels.shards import build_shards
 from pverosion.shard_scenes import hill_cone
 
+from _load import add_load_option, run
+
 PAPER = {  # cells: (interior links, exterior links, generation s, ms per path)
     100: (504, 123, 0.015, 0.245),
     1000: (5236, 433, 0.141, 0.461),
@@ -36,6 +38,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--paths", type=int, default=1000)
+    add_load_option(parser)
     args = parser.parse_args()
     points, faces = polydata_triangles(hill_cone())
     inside = inside_mesh(points, faces)
@@ -73,4 +76,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main, timings=("results.0.generation_s", "results.0.ms_per_path", "results.-1.generation_s"))

@@ -26,6 +26,8 @@ from pverosion.filters.voxel import extract_material_surface, voxel_grid, voxel_
 from pverosion.kernels.voxel_fluid import ADVECTION_SCHEMES
 from pverosion.voxel_scenes import meander_grid
 
+from _load import add_load_option, run
+
 
 def _steps(scheme: str, n: int, dt: float) -> dict:
     """Median ms per part of ``n`` steps of the meander grid with the given advection scheme."""
@@ -59,6 +61,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=30)
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--time-step", type=float, default=0.01)
+    add_load_option(parser)
     args = parser.parse_args()
     steps = {scheme: _steps(scheme, args.steps, args.time_step) for scheme in ADVECTION_SCHEMES}
     field = np.linalg.norm(np.mgrid[-1:1:256j, -1:1:256j, -1:1:256j], axis=0)
@@ -84,4 +87,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main, timings=("advection.semi-lagrangian.median_ms.total", "extraction_256.flying_edges.median_ms"))

@@ -7,7 +7,7 @@ with vtkCurvatures and applies the same displacement (uniform Laplacian,
 eqs. 3-5). Both are measured in the same run; numba compilation is excluded
 by a warm-up.
 
-    python benchmarks/bench_weathering.py [--data ../shared/data/bunny.ply] [--steps 100]
+    python benchmarks/bench_weathering.py [--data ../shared/data/bunny.ply] [--steps 100] [--load N]
 """
 
 from __future__ import annotations
@@ -27,6 +27,8 @@ from pverosion.kernels.orientation import orient_faces
 from pverosion.kernels.topology import edge_topology, one_ring
 from pverosion.kernels.weathering import WeatheringSolver, _displace
 
+from _load import add_load_option, run
+
 DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
 
 
@@ -45,6 +47,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DEFAULT)
     parser.add_argument("--steps", type=int, default=100)
+    add_load_option(parser)
     args = parser.parse_args()
 
     scan = pv.read(args.data)
@@ -101,4 +104,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main, timings=("iteration_median_ms", "vtk_iteration_median_ms"))
