@@ -18,7 +18,7 @@ stopped after ``--vtk-limit`` seconds (it takes minutes on the larger scenes).
 The targets: twelve objects detected and repaired in <= 500 ms; two-mesh
 unions within 4x of manifold3d's time.
 
-Usage: ``python benchmarks/bench_intersections.py [--repeats 7] [--scene NAME|all] [--vtk-limit 60]``
+Usage: ``python benchmarks/bench_intersections.py [--repeats 7] [--scene NAME|all] [--vtk-limit 60] [--load N]``
 """
 
 from __future__ import annotations

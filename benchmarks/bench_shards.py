@@ -8,7 +8,7 @@ fresh graph as in the paper, median of the runs), next to the paper's
 figures. Targets: <= 1.0 s generation for 10k cells, <= 0.1 ms per path,
 and per-path time growing by <= 2x from 1k to 10k cells. Prints JSON.
 
-Usage: python benchmarks/bench_shards.py [--repeat 5] [--paths 1000]
+Usage: python benchmarks/bench_shards.py [--repeat 5] [--paths 1000] [--load N]
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ targets: <= 150 ms per full step, <= 150 ms per 256³ extraction. Both
 velocity advection schemes are measured (semi-Lagrangian, the default, and
 MacCormack), each on a fresh grid.
 
-Usage: python benchmarks/bench_voxel.py [--steps 30] [--repeat 5]
+Usage: python benchmarks/bench_voxel.py [--steps 30] [--repeat 5] [--load N]
 """
 
 from __future__ import annotations
