@@ -1,0 +1,145 @@
+"""Cold start: every CLI subcommand once with an empty numba cache, then once warm, each in a fresh process.
+
+Prints one JSON object of wall times (seconds, the whole process: start-up,
+reading, compiling, running, writing) and, as ``*_cpu_s``, the CPU seconds
+(user + system) of the same processes. "cold" runs with ``NUMBA_CACHE_DIR``
+pointing at a new empty folder, as after a fresh install; "warm" repeats the
+same command with the cache the cold run filled. Also timed: ``import
+pverosion``, ``pverosion --help``, and ``pverosion warmup`` of every stage
+(parallel processes) into another empty cache, after which every stage's
+first run is timed again ("after_warmup").
+
+Inputs: the Stanford bunny scan (``--data``), closed and turned outward
+where a stage needs a closed surface (shards, booleans, hydraulic), and
+small procedural volumes and spheres.
+
+    python benchmarks/bench_cold_start.py [--data ../shared/data/bunny.ply] [--stages curvature,weather]
+        [--skip-warmup] [--load N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pyvista as pv
+
+from pverosion._stages import STAGE_INDEX
+from pverosion.hydraulic_scenes import pour_scene
+from pverosion.intersection_scenes import two_spheres
+from pverosion.voxel_scenes import meander_grid
+
+from _load import add_load_option, run
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT = ROOT.parent / "shared" / "data" / "bunny.ply"
+TARGETS_S = {"curvature_cold": 8.0, "curvature_warm": 2.0, "weather_cold": 10.0, "boolean_cold": 15.0,
+             "import": 0.7, "help": 0.7}
+
+
+def _inputs(folder: Path, data: Path) -> dict[str, list[str]]:
+    """Write the inputs; the command line (after ``pverosion``) of each stage."""
+    scan = folder / "bunny.ply"
+    scan.write_bytes(data.read_bytes())
+    scene = pour_scene(mesh=pv.read(data), up=(0.0, 1.0, 0.0))  # closed, outward, z up
+    closed = folder / "bunny_closed.vtp"
+    scene.mesh.save(closed)
+    shifted = folder / "bunny_shifted.vtp"
+    size = float(np.ptp(scene.mesh.points[:, 0]))
+    scene.mesh.translate((0.3 * size, 0.1 * size, 0.0)).save(shifted)
+    n = 48
+    axis = np.linspace(-1.0, 1.0, n)
+    x, y, z = np.meshgrid(axis, axis, axis, indexing="ij")
+    ball = pv.ImageData(dimensions=(n, n, n), origin=(-1.0, -1.0, -1.0), spacing=(2 / (n - 1),) * 3)
+    ball["density"] = (1.0 - np.sqrt(x**2 + y**2 + z**2)).transpose(2, 1, 0).ravel()
+    ball.save(folder / "ball.vti")
+    grid, _ = meander_grid((64, 32, 32), spacing=0.05, depth=5, half_width=3.0, amplitude=2.0)
+    grid.save(folder / "meander.vti")
+    a, b = two_spheres()
+    (a + b).save(folder / "two_spheres.vtp")
+    out = str(folder / "out")
+    return {
+        "curvature": ["curvature", str(scan), "-o", f"{out}.vtp"],
+        "weather": ["weather", str(scan), "-o", f"{out}.vtp", "--iterations", "20"],
+        "hydraulic": ["hydraulic", str(closed), "-o", f"{out}.vtm", "--iterations", "5", "--radius",
+                      repr(scene.radius), *[f"--emitter={e}" for e in scene.emitters[:1]],
+                      *[f"--drain={d}" for d in scene.drains[:1]]],
+        "materials": ["materials", str(folder / "ball.vti"), "-o", f"{out}.vti", "--thresholds", "0.2,0.6",
+                      "--tree-file", str(folder / "tree.json")],
+        "sample-materials": ["sample-materials", str(folder / "ball.vti"), "-o", f"{out}_sampled.vti",
+                             "--tree-file", str(folder / "tree.json")],
+        "voxel": ["voxel", str(folder / "meander.vti"), "-o", f"{out}.vtm", "--iterations", "3",
+                  "--source-velocity", "1.5,0,0"],
+        "shard-graph": ["shard-graph", str(closed), "-o", f"{out}.vtm", "--cells", "200"],
+        "shards": ["shards", str(closed), "-o", f"{out}.vtm", "--cells", "200", "--iterations", "2",
+                   "--paths-per-step", "100"],
+        "repair": ["repair", str(folder / "two_spheres.vtp"), "-o", f"{out}.vtp"],
+        "boolean": ["boolean", str(closed), str(shifted), "--operation", "union", "-o", f"{out}.vtp"],
+    }
+
+
+def _wall(args: list[str], cache: Path, cpu: dict | None = None, key: str = "") -> float:
+    """Wall seconds of ``python args`` with numba's cache in ``cache``; raises on failure.
+
+    The process's CPU seconds (user + system) go to ``cpu[key]``: on a shared
+    machine they vary less than the wall time.
+    """
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(cache)}
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, *args], env=env, capture_output=True, text=True)
+    seconds = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if done.returncode != 0:
+        raise RuntimeError(f"{' '.join(args)} failed:\n{done.stderr[-2000:]}")
+    if cpu is not None:
+        cpu[key] = round(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime, 2)
+    return round(seconds, 2)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=DEFAULT)
+    parser.add_argument("--stages", default="", help="comma-separated stages (default: all)")
+    parser.add_argument("--skip-warmup", action="store_true", help="do not time pverosion warmup")
+    add_load_option(parser)
+    args = parser.parse_args()
+    stages = [s for s in args.stages.split(",") if s] or [s.command for s in STAGE_INDEX]
+    if "sample-materials" in stages and "materials" not in stages:
+        stages.insert(stages.index("sample-materials"), "materials")  # it reads the tree materials writes
+    with tempfile.TemporaryDirectory(prefix="pverosion_cold_") as tmp:
+        folder = Path(tmp)
+        commands = _inputs(folder, args.data)
+        result: dict = {"benchmark": "cold_start", "cpus": os.cpu_count(), "mesh": args.data.name,
+                        "numba_num_threads": os.environ.get("NUMBA_NUM_THREADS", "default")}
+        warm_cache = folder / "cache_warm"
+        result["import_s"] = _wall(["-c", "import pverosion"], warm_cache)
+        result["help_s"] = _wall(["-m", "pverosion", "--help"], warm_cache)
+        cold, warm, cold_cpu, warm_cpu = {}, {}, {}, {}
+        for stage in stages:
+            cache = folder / f"cache_{stage}"  # new and empty: nothing compiled yet
+            cold[stage] = _wall(["-m", "pverosion", *commands[stage]], cache, cold_cpu, stage)
+            warm[stage] = _wall(["-m", "pverosion", *commands[stage]], cache, warm_cpu, stage)
+        result.update(cold_s=cold, warm_s=warm, cold_cpu_s=cold_cpu, warm_cpu_s=warm_cpu)
+        if not args.skip_warmup:
+            cache = folder / "cache_warmup"
+            result["warmup_all_s"] = _wall(["-m", "pverosion", "warmup", *stages], cache)
+            after, after_cpu = {}, {}
+            for stage in stages:
+                after[stage] = _wall(["-m", "pverosion", *commands[stage]], cache, after_cpu, stage)
+            result.update(after_warmup_s=after, after_warmup_cpu_s=after_cpu)
+        result["targets_s"] = TARGETS_S
+    print(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    run(main, timings=("import_s", "help_s", "cold_s.curvature", "warm_s.curvature", "cold_s.weather",
+                       "warm_s.weather", "cold_s.boolean", "warm_s.boolean"))
