@@ -25,6 +25,7 @@ import shutil
 import tempfile
 import time
 import traceback
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -253,14 +254,13 @@ def job_figures(before: pv.DataSet, after: pv.DataSet) -> dict[str, float]:
     return figures
 
 
-def warm_up() -> str:
-    """Load the compiled kernels in this process (a tiny weathering run); returns the worker's name.
+def warm_up(stages: Sequence[str] = ("weather",)) -> str:
+    """Load the compiled kernels of ``stages`` in this process (tiny runs); returns the worker's name.
 
     Batch runs call this on every worker at start-up, so the first job of a
     worker is not charged with loading numba's cache.
     """
-    from pverosion.api import weather
-    from pverosion.examples import load_rock
+    from pverosion.warmup import warm_up as warm_stages
 
-    weather(load_rock(subdivisions=2), iterations=2, check_every=1)
+    warm_stages(stages, processes=1)
     return f"{platform.node()}:{os.getpid()}"

@@ -25,6 +25,7 @@ from pverosion.batch.job import JOBS_FOLDER, TEMP_PREFIX, run_job, warm_up, writ
 from pverosion.batch.manifest import Manifest, collect_results, write_results
 from pverosion.batch.scenario import Job, Scenario, load_scenario
 from pverosion.io import atomic_path
+from pverosion.warmup import warm_up as warm_stages
 
 __all__ = ["BatchReport", "run_batch"]
 
@@ -155,10 +156,13 @@ def run_batch(
             report.seconds = time.perf_counter() - start
         else:
             start = time.perf_counter()
+            stages = sorted({stage["stage"] for job in pending for stage in job.stages})
+            if client is None and scheduler is None:  # fill numba's cache once, stages in parallel processes
+                warm_stages(stages, processes=workers)
             active = client if client is not None else stack.enter_context(
                 _client(scheduler=scheduler, workers=workers))
             threads = threads_per_job or _default_threads(active, local=scheduler is None)
-            _check_workers(active, root)
+            _check_workers(active, root, stages)
             report.seconds_startup = time.perf_counter() - start
             report.workers = len(active.scheduler_info(n_workers=-1)["workers"])
             start = time.perf_counter()
@@ -215,14 +219,14 @@ def _default_threads(client, *, local: bool) -> int:
     return max(1, (os.cpu_count() or 1) // n_workers)
 
 
-def _check_workers(client, root: Path) -> None:
+def _check_workers(client, root: Path, stages: list[str]) -> None:
     """Fail early unless every worker sees the output folder; load the kernels on every worker."""
     seen = client.run(os.path.isdir, str(root))
     blind = [worker for worker, ok in seen.items() if not ok]
     if blind:
         raise RuntimeError(f"workers {', '.join(blind)} cannot see the output folder {root}: "
                            "batch outputs need a file system shared by the driver and every worker")
-    warm = [client.submit(warm_up, workers=[worker], allow_other_workers=False, pure=False) for worker in seen]
+    warm = [client.submit(warm_up, stages, workers=[worker], allow_other_workers=False, pure=False) for worker in seen]
     client.gather(warm)
 
 
