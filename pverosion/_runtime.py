@@ -23,13 +23,16 @@ from collections.abc import Iterator, MutableMapping
 from contextlib import ExitStack, contextmanager
 from typing import TextIO
 
-__all__ = ["POINTS_PER_THREAD", "THREAD_ENVIRONMENT", "configure_environment", "stage_run", "threads_for"]
+__all__ = ["POINTS_PER_THREAD", "THREAD_ENVIRONMENT", "WORK_NOT_IN_POINTS", "configure_environment", "stage_run", "threads_for"]
 
 THREAD_ENVIRONMENT: dict[str, str] = {"OMP_WAIT_POLICY": "PASSIVE", "KMP_BLOCKTIME": "0"}
 """Defaults set by :func:`configure_environment` (OpenMP threads sleep when idle)."""
 
 POINTS_PER_THREAD = 8192
 """Input points per numba thread: smaller inputs run on fewer threads."""
+
+WORK_NOT_IN_POINTS = frozenset({"hydraulic", "shard-graph", "shards"})
+"""Stages whose work is set by their options (particles, cells) more than by the input's points: all threads."""
 
 _state = threading.local()  # .active: a stage_run is in progress in this thread (stages do not nest)
 
@@ -112,7 +115,8 @@ def stage_run(stage: str, n_points: int = 0, *, stream: TextIO | None = None) ->
     stage : str
         Name shown in the notice (the stage's command name).
     n_points : int, default: 0
-        Size of the input, for :func:`threads_for`; 0 keeps the thread count.
+        Size of the input, for :func:`threads_for`; 0 keeps the thread count,
+        as do the stages in :data:`WORK_NOT_IN_POINTS`.
     stream : text stream, optional
         Where the notice goes (default: ``sys.stderr`` at the time of the call).
     """
@@ -129,7 +133,7 @@ def stage_run(stage: str, n_points: int = 0, *, stream: TextIO | None = None) ->
     try:
         with ExitStack() as stack:
             stack.enter_context(event.install_listener("numba:compile", notice))
-            numba.set_num_threads(threads_for(n_points, previous))
+            numba.set_num_threads(threads_for(0 if stage in WORK_NOT_IN_POINTS else n_points, previous))
             stack.callback(numba.set_num_threads, previous)
             yield
     finally:

@@ -14,7 +14,7 @@ import pytest
 
 import pverosion
 from pverosion import _runtime
-from pverosion._runtime import POINTS_PER_THREAD, configure_environment, stage_run, threads_for
+from pverosion._runtime import POINTS_PER_THREAD, WORK_NOT_IN_POINTS, configure_environment, stage_run, threads_for
 from pverosion._stages import STAGE_INDEX, load_stage
 from pverosion.cli import main
 from pverosion.warmup import WARMUPS, warm_up
@@ -114,6 +114,10 @@ def test_stage_run_caps_threads_for_small_inputs_and_restores_them():
     assert numba.get_num_threads() == before
     with stage_run("test", 10**7, stream=io.StringIO()):
         assert numba.get_num_threads() == before
+    for stage in WORK_NOT_IN_POINTS:  # many particles or cells on a small mesh: all threads
+        with stage_run(stage, 10, stream=io.StringIO()):
+            assert numba.get_num_threads() == before
+    assert WORK_NOT_IN_POINTS <= {s.command for s in STAGE_INDEX}
 
 
 def test_compile_notice_is_shown_once_when_kernels_compile():
