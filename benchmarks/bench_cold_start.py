@@ -2,7 +2,8 @@
 
 Prints one JSON object of wall times (seconds, the whole process: start-up,
 reading, compiling, running, writing) and, as ``*_cpu_s``, the CPU seconds
-(user + system) of the same processes. "cold" runs with ``NUMBA_CACHE_DIR``
+(user + system) of the same processes, and the functions numba compiled
+with the seconds it took (``cold_compiled``; a warm run should compile none). "cold" runs with ``NUMBA_CACHE_DIR``
 pointing at a new empty folder, as after a fresh install; "warm" repeats the
 same command with the cache the cold run filled. Also timed: ``import
 pverosion``, ``pverosion --help``, and ``pverosion warmup`` of every stage
@@ -22,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import resource
 import subprocess
 import sys
@@ -41,6 +43,7 @@ from _load import add_load_option, run
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ROOT.parent / "shared" / "data" / "bunny.ply"
+COMPILED = re.compile(r"compiled (\d+) functions in ([\d.]+) s")
 TARGETS_S = {"curvature_cold": 8.0, "curvature_warm": 2.0, "weather_cold": 10.0, "boolean_cold": 15.0,
              "import": 0.7, "help": 0.7}
 
@@ -86,11 +89,13 @@ def _inputs(folder: Path, data: Path) -> dict[str, list[str]]:
     }
 
 
-def _wall(args: list[str], cache: Path, cpu: dict | None = None, key: str = "") -> float:
+def _wall(args: list[str], cache: Path, cpu: dict | None = None, key: str = "", compiled: dict | None = None) -> float:
     """Wall seconds of ``python args`` with numba's cache in ``cache``; raises on failure.
 
     The process's CPU seconds (user + system) go to ``cpu[key]``: on a shared
-    machine they vary less than the wall time.
+    machine they vary less than the wall time. The functions numba compiled and
+    the seconds it took, as the stages' compile notices report them, go to
+    ``compiled[key]``.
     """
     env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(cache)}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -102,6 +107,9 @@ def _wall(args: list[str], cache: Path, cpu: dict | None = None, key: str = "") 
         raise RuntimeError(f"{' '.join(args)} failed:\n{done.stderr[-2000:]}")
     if cpu is not None:
         cpu[key] = round(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime, 2)
+    if compiled is not None:
+        notices = [(int(n), float(t)) for n, t in COMPILED.findall(done.stderr)]
+        compiled[key] = {"functions": sum(n for n, _ in notices), "seconds": round(sum(t for _, t in notices), 1)}
     return round(seconds, 2)
 
 
@@ -123,15 +131,18 @@ def main() -> None:
         warm_cache = folder / "cache_warm"
         result["import_s"] = _wall(["-c", "import pverosion"], warm_cache)
         result["help_s"] = _wall(["-m", "pverosion", "--help"], warm_cache)
-        cold, warm, cold_cpu, warm_cpu = {}, {}, {}, {}
+        cold, warm, cold_cpu, warm_cpu, compiled, warm_compiled = {}, {}, {}, {}, {}, {}
         for stage in stages:
             cache = folder / f"cache_{stage}"  # new and empty: nothing compiled yet
-            cold[stage] = _wall(["-m", "pverosion", *commands[stage]], cache, cold_cpu, stage)
-            warm[stage] = _wall(["-m", "pverosion", *commands[stage]], cache, warm_cpu, stage)
-        result.update(cold_s=cold, warm_s=warm, cold_cpu_s=cold_cpu, warm_cpu_s=warm_cpu)
+            cold[stage] = _wall(["-m", "pverosion", *commands[stage]], cache, cold_cpu, stage, compiled)
+            warm[stage] = _wall(["-m", "pverosion", *commands[stage]], cache, warm_cpu, stage, warm_compiled)
+        result.update(cold_s=cold, warm_s=warm, cold_cpu_s=cold_cpu, warm_cpu_s=warm_cpu, cold_compiled=compiled,
+                      warm_compiled_functions=sum(c["functions"] for c in warm_compiled.values()))
         if not args.skip_warmup:
             cache = folder / "cache_warmup"
-            result["warmup_all_s"] = _wall(["-m", "pverosion", "warmup", *stages], cache)
+            warmup_compiled = {}
+            result["warmup_all_s"] = _wall(["-m", "pverosion", "warmup", *stages], cache, None, "all", warmup_compiled)
+            result["warmup_compiled"] = warmup_compiled["all"]
             after, after_cpu = {}, {}
             for stage in stages:
                 after[stage] = _wall(["-m", "pverosion", *commands[stage]], cache, after_cpu, stage)

@@ -89,8 +89,10 @@ def _compile_notice(stage: str, stream: TextIO):
             self.depth = 0
             self.started = 0.0
             self.seconds = 0.0
+            self.count = 0  # functions compiled, the ones compiled for a caller included
 
         def on_start(self, ev):
+            self.count += 1
             if self.depth == 0:
                 if self.seconds == 0.0:
                     print(f"pverosion {stage}: compiling kernels, once per install (cached in {_cache_location()}) ...",
@@ -139,4 +141,5 @@ def stage_run(stage: str, n_points: int = 0, *, stream: TextIO | None = None) ->
     finally:
         _state.active = False
         if notice.seconds > 0.0:
-            print(f"pverosion {stage}: compiled kernels in {notice.seconds:.1f} s", file=stream, flush=True)
+            print(f"pverosion {stage}: compiled {notice.count} functions in {notice.seconds:.1f} s", file=stream,
+                  flush=True)
