@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from vtkmodules.util import numpy_support
 
@@ -27,6 +29,8 @@ def parse_numbers(text: str, name: str, *, count: int | None = None) -> list[flo
         raise ValueError(f"{name} must be numbers separated by commas; got {text!r}") from None
     if not values:
         raise ValueError(f"{name} needs at least one number")
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f"{name} must be finite numbers; got {text!r}")
     if count is not None and len(values) != count:
         raise ValueError(f"{name} needs {count} numbers; got {len(values)} in {text!r}")
     return values

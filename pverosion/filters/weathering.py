@@ -136,7 +136,8 @@ class Weathering(MeshSolverFilter):
         Param("iterations", 100, "Number of weathering steps (time steps 0..iterations).", minimum=0),
         Param("power", 1.0, "Power modifier n >= 1 of the curvature (eq. 5): larger spares flat regions.",
               minimum=1.0),
-        Param("step_divisor", 10.0, "Divisor x: the largest displacement per step is e_avg / x.", minimum=1e-6),
+        Param("step_divisor", 10.0, "Divisor x >= 1: the largest displacement per step is e_avg / x (below 1 a step "
+              "could turn the surface inside out).", minimum=1.0),
         Param("direction", "laplacian", "Displacement direction: unit uniform Laplacian or inward normal.",
               choices=DIRECTIONS),
         Param("min_edge_ratio", 0.1, "Collapse edges shorter than this times e_avg after every step (0: off).",
