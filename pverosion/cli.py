@@ -79,7 +79,8 @@ def build_parser() -> argparse.ArgumentParser:
             cmd.add_argument("--save-every", type=int, metavar="K",
                              help="also save every K-th step (and the last) into the --series collection")
             cmd.add_argument("--series", type=Path, metavar="OUT.pvd",
-                             help="ParaView time series (.pvd) of the saved steps (default: next to OUT)")
+                             help="ParaView time series (.pvd) of the saved steps (default: OUT.pvd next to OUT; "
+                             "OUT_series.pvd for a .vtm OUT)")
         cmd.set_defaults(filter_cls=filter_cls)
     return parser
 
@@ -95,7 +96,7 @@ def _run_time_stage(filter_cls: type[ErosionFilter], mesh, options: dict, args: 
     n = options["iterations"]
     series = None
     if args.save_every:
-        series = TimeSeriesWriter(args.series or args.output.with_suffix(".pvd"))
+        series = TimeSeriesWriter(_series_path(args))
     with tqdm(total=n, desc=filter_cls.command_name(), unit="step") as bar:
         def advance(t: float) -> None:
             bar.update(max(int(t) - bar.n, 0))
@@ -129,12 +130,21 @@ def _check_outputs(args: argparse.Namespace) -> None:
     if args.series is not None and args.save_every is None:
         raise ValueError("--series needs --save-every K")
     if args.save_every:
-        series = args.series or args.output.with_suffix(".pvd")
+        series = _series_path(args)
         if series.suffix != ".pvd":
             raise ValueError(f"--series {series}: a time series is a .pvd file")
-        if series.resolve() == args.output.resolve():
-            raise ValueError("--series and -o name the same file")
+        if series.with_suffix("").resolve() == args.output.with_suffix("").resolve():
+            raise ValueError(f"--series {series} and -o {args.output} would share the folder {series.with_suffix('')}; "
+                             "give the series another name")
         check_output_path(series.with_suffix(".vtp"), "vtkPolyData", what="--series")
+
+
+def _series_path(args: argparse.Namespace) -> Path:
+    """``--series``, else OUT.pvd next to the output (OUT_series.pvd beside a .vtm, whose blocks use OUT/)."""
+    if args.series is not None:
+        return args.series
+    out = args.output
+    return out.with_name(f"{out.stem}_series.pvd") if out.suffix.lower() == ".vtm" else out.with_suffix(".pvd")
 
 
 def _cli_message(message: str, filter_cls: type[ErosionFilter] | None) -> str:

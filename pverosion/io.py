@@ -93,6 +93,17 @@ def _umask() -> int:
     return mask
 
 
+def _read(path: Path) -> pv.DataObject:
+    """``pv.read`` with one ``ValueError`` naming the file for unknown formats and unreadable content."""
+    try:
+        data = pv.read(path)
+    except (ValueError, OSError, RuntimeError, TypeError) as exc:
+        raise ValueError(f"cannot read {path}: {exc}") from None
+    if data is None:
+        raise ValueError(f"cannot read {path}: no data in it")
+    return data
+
+
 def read_image(path: str | os.PathLike) -> pv.ImageData:
     """Read a volume on a regular grid (VTI, MHD/MHA, NRRD, ... anything PyVista reads as ImageData).
 
@@ -106,7 +117,7 @@ def read_image(path: str | os.PathLike) -> pv.ImageData:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"no such file: {path}")
-    data = pv.read(path)
+    data = _read(path)
     if not isinstance(data, pv.ImageData):
         raise ValueError(f"{path} holds a {type(data).__name__}, not an image on a regular grid")
     return data
@@ -135,7 +146,10 @@ def read_mesh(path: str | os.PathLike) -> pv.PolyData:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"no such file: {path}")
-    data = pv.read(path)
+    data = _read(path)
+    if isinstance(data, pv.ImageData):
+        raise ValueError(f"{path} holds an image (a volume on a regular grid), not a surface; "
+                         "this stage takes a triangle mesh (PLY, STL, OBJ, VTP, VTK)")
     if isinstance(data, pv.MultiBlock):
         data = data.combine()
     if not isinstance(data, pv.PolyData):

@@ -10,6 +10,7 @@ option is written in one place.
 
 from __future__ import annotations
 
+import math
 import signal
 import threading
 from collections.abc import Callable, Sequence
@@ -34,6 +35,7 @@ __all__ = [
     "Param",
     "TimeSteppedFilter",
     "output_times",
+    "parse_numbers",
     "polydata_triangles",
     "replace_triangles",
     "set_field_value",
@@ -62,6 +64,13 @@ class Param:
     path : {"input", "output"}, optional
         The option names a file the filter reads (``"input"``) or writes
         (``"output"``); batch runs resolve such paths (see :mod:`pverosion.batch`).
+    numbers : int, optional
+        A string option holding comma-separated finite numbers: exactly this
+        many, or one or more when 0. Checked when set (empty means unset).
+    parse : callable, optional
+        ``parse(text)`` of a string option, raising ``ValueError`` for a bad
+        non-empty value; called when the option is set, so every front end
+        refuses it before running.
     """
 
     name: str
@@ -71,6 +80,8 @@ class Param:
     minimum: float | None = None
     maximum: float | None = None
     path: str | None = None
+    numbers: int | None = None
+    parse: Callable[[str], Any] | None = None
 
     @property
     def kind(self) -> type:
@@ -106,7 +117,31 @@ class Param:
             raise TypeError(f"{self.name} must be a string; got {value!r}")
         if self.choices is not None and value not in self.choices:
             raise ValueError(f"{self.name} must be one of {self.choices}; got {value!r}")
+        if value and self.numbers is not None:
+            parse_numbers(value, self.name, count=self.numbers or None)
+        if value and self.parse is not None:
+            try:
+                self.parse(value)
+            except (ValueError, TypeError) as exc:
+                message = str(exc)
+                raise ValueError(message if message.startswith(self.name) else f"{self.name}: {message}") from None
         return value
+
+
+def parse_numbers(text: str, name: str, *, count: int | None = None) -> list[float]:
+    """Comma- or space-separated numbers of a string option (exactly ``count`` if given); ``ValueError`` naming it."""
+    try:
+        values = [float(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        raise ValueError(f"{name} must be numbers separated by commas; got {text!r}") from None
+    if not values:
+        raise ValueError(f"{name} needs at least one number")
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f"{name} must be finite numbers; got {text!r}")
+    if count is not None and len(values) != count:
+        raise ValueError(f"{name} needs {count} numbers; got {len(values)} in {text!r}")
+    return values
+
 
 
 class ErosionFilter(VTKPythonAlgorithmBase):

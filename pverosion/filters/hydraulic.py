@@ -15,12 +15,12 @@ from vtkmodules.vtkCommonDataModel import vtkPolyData
 
 from pverosion.filters.base import (
     Param,
+    parse_numbers,
     polydata_triangles,
     set_field_value,
     set_multiblock,
     set_point_array,
 )
-from pverosion.filters.materials import parse_numbers
 from pverosion.filters.weathering import MeshSolverFilter, weathering_output
 from pverosion.kernels.geometry import average_edge_length
 from pverosion.kernels.hydraulic_erosion import MODELS, HydraulicSolver, ShearParameters
@@ -132,13 +132,14 @@ class HydraulicErosion(MeshSolverFilter):
         Param("model", "curvature", "Erosion model: curvature (Skorkovska 2019 eqs. 6-7) or sediment (shear stress, "
               "thesis ch. 8).", choices=MODELS),
         Param("emitter", "", "Water sources x,y,z,dx,dy,dz,r,rate[,speed] (disc centre, direction, disc radius, "
-              "particles per second, speed), several separated by ';'."),
+              "particles per second, speed), several separated by ';'.", parse=parse_emitters),
         Param("drain", "", "Water sinks plane:nx,ny,nz,d (removes n.x > d) or box:xmin,ymin,zmin,xmax,ymax,zmax, "
-              "separated by ';'. Particles leaving the domain are always drained."),
-        Param("domain", "", "Box of the fluid xmin,ymin,zmin,xmax,ymax,zmax (empty: the mesh and emitters, padded)."),
+              "separated by ';'. Particles leaving the domain are always drained.", parse=parse_drains),
+        Param("domain", "", "Box of the fluid xmin,ymin,zmin,xmax,ymax,zmax (empty: the mesh and emitters, padded).",
+              numbers=6),
         Param("walls", False, "Keep particles inside the domain box (a tank) instead of draining those leaving it."),
         Param("radius", 0.0, "Particle radius (0: half the mesh's average edge length).", minimum=0.0),
-        Param("gravity", "0,0,-9.81", "Gravity vector gx,gy,gz in model units per second squared."),
+        Param("gravity", "0,0,-9.81", "Gravity vector gx,gy,gz in model units per second squared.", numbers=3),
         Param("time_step", 0.0, "Seconds per iteration (0: automatic from the particle radius and gravity).",
               minimum=0.0),
         Param("substeps", 2, "Fluid substeps per iteration.", minimum=1),
