@@ -148,7 +148,7 @@ def _series_path(args: argparse.Namespace) -> Path:
 
 
 def _cli_message(message: str, filter_cls: type[ErosionFilter] | None) -> str:
-    """``message`` with the stage's options in CLI syntax: ``name='v'`` -> ``--name v``, a leading ``name`` -> ``--name``."""
+    """``message`` with the stage's options in CLI syntax (``name='v'`` -> ``--name v``, ``time_step`` -> ``--time-step``)."""
     if filter_cls is None:
         return message
     for p in filter_cls.PARAMS:
