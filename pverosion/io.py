@@ -9,6 +9,7 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import pyvista as pv
+from vtkmodules.vtkCommonCore import vtkObject
 
 __all__ = [
     "EXTENSIONS",
@@ -94,11 +95,21 @@ def _umask() -> int:
 
 
 def _read(path: Path) -> pv.DataObject:
-    """``pv.read`` with one ``ValueError`` naming the file for unknown formats and unreadable content."""
+    """``pv.read`` with one ``ValueError`` naming the file for empty files, unknown formats and unreadable content.
+
+    VTK's own error printout of a reader is switched off: the error reaches
+    the caller once, as the exception.
+    """
+    if path.stat().st_size == 0:
+        raise ValueError(f"{path} is empty (0 bytes)")
+    shown = vtkObject.GetGlobalWarningDisplay()
+    vtkObject.GlobalWarningDisplayOff()
     try:
         data = pv.read(path)
     except (ValueError, OSError, RuntimeError, TypeError) as exc:
         raise ValueError(f"cannot read {path}: {exc}") from None
+    finally:
+        vtkObject.SetGlobalWarningDisplay(shown)
     if data is None:
         raise ValueError(f"cannot read {path}: no data in it")
     return data

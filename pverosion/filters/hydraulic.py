@@ -16,7 +16,6 @@ from vtkmodules.vtkCommonDataModel import vtkPolyData
 from pverosion.filters.base import (
     Param,
     parse_numbers,
-    polydata_triangles,
     set_field_value,
     set_multiblock,
     set_point_array,
@@ -27,7 +26,6 @@ from pverosion.kernels.hydraulic_erosion import MODELS, HydraulicSolver, ShearPa
 from pverosion.kernels.mesh_evolution import REPAIR_MODES
 from pverosion.kernels.orientation import ORIENTATIONS
 from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters
-from pverosion.kernels.topology import edge_topology
 from pverosion.kernels.validation import InvalidMeshError
 from pverosion.limits import check_memory, check_work
 
@@ -171,12 +169,12 @@ class HydraulicErosion(MeshSolverFilter):
     )
 
     def _new_solver(self, inp) -> HydraulicSolver:
-        points, faces = polydata_triangles(inp)
+        points, faces, topology = self._surface(inp)
         emitters = parse_emitters(self.get_option("emitter"))
         drains = parse_drains(self.get_option("drain"))
         if not emitters:
             raise ValueError("hydraulic erosion needs water: give at least one emitter x,y,z,dx,dy,dz,r,rate")
-        holes = edge_topology(np.asarray(faces, np.int64), len(points)).n_boundary_edges
+        holes = topology.n_boundary_edges
         if holes and self.get_option("close_holes"):
             from pverosion.hydraulic_scenes import fill_holes  # the scenes' hole filling (imports this module)
 

@@ -16,6 +16,8 @@ from pverosion.filters.base import (
 )
 from pverosion.kernels.mesh_evolution import REPAIR_MODES, GuardedMeshSolver
 from pverosion.kernels.orientation import ORIENTATIONS
+from pverosion.kernels.topology import EdgeTopology, edge_topology
+from pverosion.kernels.validation import InvalidMeshError
 from pverosion.kernels.weathering import DIRECTIONS, Erodibility, WeatheringSolver
 
 __all__ = ["MeshSolverFilter", "Weathering", "weathering_output"]
@@ -76,6 +78,20 @@ class MeshSolverFilter(TimeSteppedFilter):
 
     def _new_solver(self, inp) -> GuardedMeshSolver:
         raise NotImplementedError
+
+    @staticmethod
+    def _surface(inp) -> tuple[np.ndarray, np.ndarray, EdgeTopology]:
+        """Points (V, 3), triangles (F, 3) and edge topology of ``inp``; ``InvalidMeshError`` if it is non-manifold.
+
+        A surface that evolves needs every edge between at most two faces:
+        curvature and the self-intersection guard are undefined elsewhere.
+        """
+        points, faces = polydata_triangles(inp)
+        topology = edge_topology(np.asarray(faces, np.int64), len(points))
+        if topology.n_nonmanifold_edges:
+            raise InvalidMeshError(f"mesh has {topology.n_nonmanifold_edges} non-manifold edges (shared by more than "
+                                   "two faces): repair it first (pverosion repair, or pverosion.repair)")
+        return points, faces, topology
 
     def _fill(self, solver: GuardedMeshSolver, inp, out) -> None:
         raise NotImplementedError
@@ -151,7 +167,7 @@ class Weathering(MeshSolverFilter):
     )
 
     def _new_solver(self, inp) -> WeatheringSolver:
-        points, faces = polydata_triangles(inp)
+        points, faces, _ = self._surface(inp)
         return WeatheringSolver(
             points,
             faces,
