@@ -7,8 +7,10 @@ Stage subcommands and their options are generated from the filters'
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import time
+import warnings
 from collections.abc import Collection
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -98,7 +100,8 @@ def build_parser(*, stages: Collection[str] | None = None) -> argparse.ArgumentP
             cmd.add_argument("--save-every", type=int, metavar="K",
                              help="also save every K-th step (and the last) into the --series collection")
             cmd.add_argument("--series", type=Path, metavar="OUT.pvd",
-                             help="ParaView time series (.pvd) of the saved steps (default: next to OUT)")
+                             help="ParaView time series (.pvd) of the saved steps (default: OUT.pvd next to OUT; "
+                             "OUT_series.pvd for a .vtm OUT)")
         cmd.set_defaults(filter_cls=filter_cls)
     return parser
 
@@ -112,13 +115,9 @@ def _run_time_stage(filter_cls: type[ErosionFilter], mesh, options: dict, args: 
     from pverosion.io import TimeSeriesWriter
 
     n = options["iterations"]
-    if args.save_every is not None and args.save_every < 1:
-        raise ValueError(f"--save-every must be >= 1; got {args.save_every}")
-    if args.series is not None and args.save_every is None:
-        raise ValueError("--series needs --save-every K")
     series = None
     if args.save_every:
-        series = TimeSeriesWriter(args.series or args.output.with_suffix(".pvd"))
+        series = TimeSeriesWriter(_series_path(args))
     with tqdm(total=n, desc=filter_cls.command_name(), unit="step") as bar:
         def advance(t: float) -> None:
             bar.update(max(int(t) - bar.n, 0))
@@ -134,12 +133,70 @@ def _run_time_stage(filter_cls: type[ErosionFilter], mesh, options: dict, args: 
     return pv.wrap(result)
 
 
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Refuse bad output paths and series options before any work is done."""
+    from pverosion.io import check_output_path
+
+    filter_cls = args.filter_cls
+    check_output_path(args.output, filter_cls.OUTPUT_TYPE, what="-o")
+    if args.screenshot is not None:
+        if args.screenshot.suffix.lower() not in (".png", ".jpg", ".jpeg"):
+            raise ValueError(f"--screenshot {args.screenshot}: give a .png or .jpg file")
+        if args.screenshot.resolve() == args.output.resolve():
+            raise ValueError("--screenshot and -o name the same file")
+    if not filter_cls.TIME_DEPENDENT:
+        return
+    if args.save_every is not None and args.save_every < 1:
+        raise ValueError(f"--save-every must be >= 1; got {args.save_every}")
+    if args.series is not None and args.save_every is None:
+        raise ValueError("--series needs --save-every K")
+    if args.save_every:
+        series = _series_path(args)
+        if series.suffix != ".pvd":
+            raise ValueError(f"--series {series}: a time series is a .pvd file")
+        if series.with_suffix("").resolve() == args.output.with_suffix("").resolve():
+            raise ValueError(f"--series {series} and -o {args.output} would share the folder {series.with_suffix('')}; "
+                             "give the series another name")
+        check_output_path(series.with_suffix(".vtp"), "vtkPolyData", what="--series")
+
+
+def _series_path(args: argparse.Namespace) -> Path:
+    """``--series``, else OUT.pvd next to the output (OUT_series.pvd beside a .vtm, whose blocks use OUT/)."""
+    if args.series is not None:
+        return args.series
+    out = args.output
+    return out.with_name(f"{out.stem}_series.pvd") if out.suffix.lower() == ".vtm" else out.with_suffix(".pvd")
+
+
+def _cli_message(message: str, filter_cls: type[ErosionFilter] | None) -> str:
+    """``message`` with the stage's options in CLI syntax (``name='v'`` -> ``--name v``, ``time_step`` -> ``--time-step``)."""
+    if filter_cls is None:
+        return message
+    for p in filter_cls.PARAMS:
+        flag = "--" + p.name.replace("_", "-")
+
+        def spell(match: re.Match, flag: str = flag, boolean: bool = p.kind is bool) -> str:
+            value = next(v for v in match.groups() if v is not None)
+            if boolean:
+                return flag if value == "True" else "--no-" + flag[2:]
+            return f"{flag} {value}"
+
+        message = re.sub(rf"\b{p.name}=(?:'([^']*)'|\"([^\"]*)\"|([^\s,;)'\"]+))", spell, message)
+        if "_" in p.name:  # unambiguous: any whole-word mention
+            message = re.sub(rf"(?<![-.'\"\w]){p.name}\b(?!=)", flag, message)
+        else:  # a plain word: only where it names the option
+            message = re.sub(rf"(^|lower ){p.name}\b(?= must| needs|:|,|$)", rf"\g<1>{flag}", message)
+    return message
+
+
 def _run_stage(args: argparse.Namespace) -> None:
     from pverosion._frontend import apply_filter
     from pverosion.io import read_image, read_mesh, write_atomic
 
     filter_cls = args.filter_cls
     options = {p.name: getattr(args, p.name) for p in filter_cls.PARAMS}
+    _check_outputs(args)
+    filter_cls(**options)  # validates every option before the input is read
     if len(filter_cls.INPUT_PORTS) > 1:  # several surfaces (booleans)
         import pyvista as pv
 
@@ -221,22 +278,42 @@ def _run_batch(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``pverosion`` console script; returns the exit status."""
+    """Entry point of the ``pverosion`` console script; returns the exit status.
+
+    0 on success, 1 when batch jobs failed or memory ran out, 2 for bad input
+    or options (one line naming the problem, no traceback), 130 after Ctrl-C
+    (the run stops within one step; completed steps of a ``--series`` stay
+    readable and nothing partial is written).
+    """
+    from pverosion.filters.base import deferred_interrupt
+
     argv = sys.argv[1:] if argv is None else list(argv)
     command = next((arg for arg in argv if not arg.startswith("-")), None)
     parser = build_parser(stages={command})  # only the chosen stage's filter module is imported
     args = parser.parse_args(argv)
+    where = f"pverosion {args.command}"
+    def show(message, category, *_args, **_kwargs):
+        print(f"{where}: warning: {message}", file=sys.stderr)
+
     try:
-        if args.command == "demo":
-            _run_demo(args)
-        elif args.command == "warmup":
-            _run_warmup(args)
-        elif args.command == "batch":
-            return _run_batch(args)
-        else:
-            _run_stage(args)
-    except (ValueError, TypeError, FileNotFoundError, OSError, RuntimeError) as exc:
-        print(f"pverosion {args.command}: error: {exc}", file=sys.stderr)
+        with deferred_interrupt(), warnings.catch_warnings():
+            warnings.showwarning = show
+            if args.command == "demo":
+                _run_demo(args)
+            elif args.command == "warmup":
+                _run_warmup(args)
+            elif args.command == "batch":
+                return _run_batch(args)
+            else:
+                _run_stage(args)
+    except KeyboardInterrupt:
+        print(f"{where}: interrupted", file=sys.stderr)
+        return 130
+    except MemoryError:
+        print(f"{where}: error: out of memory; lower the sizes of the run (see --help)", file=sys.stderr)
+        return 1
+    except (ValueError, TypeError, OSError, RuntimeError) as exc:
+        print(f"{where}: error: {_cli_message(str(exc), getattr(args, 'filter_cls', None))}", file=sys.stderr)
         return 2
     return 0
 

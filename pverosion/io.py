@@ -3,13 +3,24 @@
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import pyvista as pv
+from vtkmodules.vtkCommonCore import vtkObject
 
-__all__ = ["EXTENSIONS", "TimeSeriesWriter", "atomic_path", "read_image", "read_mesh", "write_atomic"]
+__all__ = [
+    "EXTENSIONS",
+    "OUTPUT_FORMATS",
+    "TimeSeriesWriter",
+    "atomic_path",
+    "check_output_path",
+    "read_image",
+    "read_mesh",
+    "write_atomic",
+]
 
 EXTENSIONS = {
     "PolyData": ".vtp",
@@ -20,6 +31,88 @@ EXTENSIONS = {
     "MultiBlock": ".vtm",
 }
 """XML VTK extension used for each PyVista dataset type."""
+
+OUTPUT_FORMATS = {"vtkPolyData": (".vtp", ".vtk", ".ply", ".stl", ".obj"), "vtkImageData": (".vti", ".vtk"),
+                  "vtkMultiBlockDataSet": (".vtm",)}
+"""File suffixes that hold each output data type without loss (the first is the recommended one)."""
+
+
+def check_output_path(path: str | os.PathLike, data_type: str, *, what: str = "output") -> Path:
+    """Check, before any work, that a ``data_type`` result can be written to ``path``.
+
+    Parameters
+    ----------
+    path : str or path-like
+    data_type : {"vtkPolyData", "vtkImageData", "vtkMultiBlockDataSet"}
+        VTK class name of the result.
+    what : str
+        How the path is named in messages (e.g. ``"-o"``).
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    ValueError
+        If the suffix cannot hold the result, the path is a folder, or its
+        folder cannot be created or written.
+    """
+    path = Path(path)
+    suffixes = OUTPUT_FORMATS[data_type]
+    if path.suffix.lower() not in suffixes:
+        got = f"{path.suffix!r}" if path.suffix else "no extension"
+        raise ValueError(f"{what} {path}: a {data_type[3:]} result is written as {', '.join(suffixes)}; got {got}")
+    _check_writable(path, what)
+    return path
+
+
+def _check_writable(path: Path, what: str) -> None:
+    """``ValueError`` unless ``path`` can be created or replaced (its nearest existing folder is writable)."""
+    if path.is_dir():
+        raise ValueError(f"{what} {path}: is a folder; give a file name")
+    parent = path.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise ValueError(f"{what} {path}: {parent} is not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"{what} {path}: no permission to write in {parent}")
+
+
+def _umask() -> int:
+    """The process's file-creation mask (read without changing it where /proc tells it)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _read(path: Path) -> pv.DataObject:
+    """``pv.read`` with one ``ValueError`` naming the file for empty files, unknown formats and unreadable content.
+
+    VTK's own error printout of a reader is switched off: the error reaches
+    the caller once, as the exception.
+    """
+    if path.stat().st_size == 0:
+        raise ValueError(f"{path} is empty (0 bytes)")
+    shown = vtkObject.GetGlobalWarningDisplay()
+    vtkObject.GlobalWarningDisplayOff()
+    try:
+        data = pv.read(path)
+    except (ValueError, OSError, RuntimeError, TypeError) as exc:
+        raise ValueError(f"cannot read {path}: {exc}") from None
+    finally:
+        vtkObject.SetGlobalWarningDisplay(shown)
+    if data is None:
+        raise ValueError(f"cannot read {path}: no data in it")
+    return data
 
 
 def read_image(path: str | os.PathLike) -> pv.ImageData:
@@ -35,7 +128,7 @@ def read_image(path: str | os.PathLike) -> pv.ImageData:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"no such file: {path}")
-    data = pv.read(path)
+    data = _read(path)
     if not isinstance(data, pv.ImageData):
         raise ValueError(f"{path} holds a {type(data).__name__}, not an image on a regular grid")
     return data
@@ -64,7 +157,10 @@ def read_mesh(path: str | os.PathLike) -> pv.PolyData:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"no such file: {path}")
-    data = pv.read(path)
+    data = _read(path)
+    if isinstance(data, pv.ImageData):
+        raise ValueError(f"{path} holds an image (a volume on a regular grid), not a surface; "
+                         "this stage takes a triangle mesh (PLY, STL, OBJ, VTP, VTK)")
     if isinstance(data, pv.MultiBlock):
         data = data.combine()
     if not isinstance(data, pv.PolyData):
@@ -92,6 +188,7 @@ class _AtomicPath:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{self.path.stem}.", suffix=self.path.suffix, dir=self.path.parent)
         os.close(fd)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; a written file gets the usual permissions
         self.tmp = Path(tmp)
         return self.tmp
 
@@ -105,6 +202,11 @@ class _AtomicPath:
 def write_atomic(dataset: pv.DataObject, path: str | os.PathLike) -> Path:
     """Save ``dataset`` to ``path`` (format by extension) through a temporary file and a rename.
 
+    A ``.vtm`` MultiBlock is written with its block folder named after it
+    (``out.vtm`` and ``out/``): both are built in a hidden temporary folder,
+    then the folder replaces the previous one and the ``.vtm`` is renamed
+    last, so no stale or orphaned blocks remain.
+
     Parameters
     ----------
     dataset : pyvista.DataObject
@@ -116,9 +218,32 @@ def write_atomic(dataset: pv.DataObject, path: str | os.PathLike) -> Path:
         The written path.
     """
     path = Path(path)
+    dataset = pv.wrap(dataset)
+    if isinstance(dataset, pv.MultiBlock) and path.suffix.lower() == ".vtm":
+        _write_multiblock(dataset, path)
+        return path
     with atomic_path(path) as tmp:
-        pv.wrap(dataset).save(tmp)
+        dataset.save(tmp)
     return path
+
+
+def _write_multiblock(blocks: pv.MultiBlock, path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
+    try:
+        blocks.save(work / path.name)  # writes work/<name>.vtm and work/<stem>/ with relative references
+        mode = 0o666 & ~_umask()
+        for item in work.rglob("*"):
+            os.chmod(item, mode | 0o111 if item.is_dir() else mode)
+        folder, built = path.with_suffix(""), work / path.stem
+        if built.is_dir():
+            old = work / ".previous"
+            if folder.is_dir():
+                os.replace(folder, old)
+            os.replace(built, folder)
+        os.replace(work / path.name, path)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
 
 
 class TimeSeriesWriter:

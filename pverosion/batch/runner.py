@@ -23,7 +23,7 @@ from tqdm.auto import tqdm
 
 from pverosion.batch.job import JOBS_FOLDER, TEMP_PREFIX, run_job, warm_up, write_json
 from pverosion.batch.manifest import Manifest, collect_results, write_results
-from pverosion.batch.scenario import Job, Scenario, load_scenario
+from pverosion.batch.scenario import Job, Scenario, ScenarioError, load_scenario, tomllib
 from pverosion.io import atomic_path
 from pverosion.warmup import warm_up as warm_stages
 
@@ -237,7 +237,23 @@ def _remove_leftovers(root: Path) -> None:
 
 
 def _prepare(root: Path, scenario: Scenario) -> None:
-    """Create the output folders, remove leftovers of interrupted jobs, keep the scenario and job list."""
+    """Create the output folders, remove leftovers of interrupted jobs, keep the scenario and job list.
+
+    Raises
+    ------
+    ScenarioError
+        If ``root`` holds the results of a different scenario (its content,
+        comments and layout aside): one folder, one scenario.
+    """
+    kept = root / "scenario.toml"
+    if kept.is_file():
+        try:
+            same = tomllib.loads(kept.read_text(encoding="utf-8")) == tomllib.loads(scenario.text)
+        except tomllib.TOMLDecodeError:
+            same = False
+        if not same:
+            raise ScenarioError(f"{root} holds the results of another scenario ({kept}); give this one another "
+                                "output folder, or remove that one")
     (root / JOBS_FOLDER).mkdir(parents=True, exist_ok=True)
     _remove_leftovers(root)
     with atomic_path(root / "scenario.toml") as tmp:

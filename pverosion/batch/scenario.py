@@ -39,6 +39,7 @@ import hashlib
 import inspect
 import itertools
 import json
+import math
 import os
 import sys
 from dataclasses import dataclass, field
@@ -67,6 +68,16 @@ IMAGE_SUFFIXES = (".vti", ".mhd", ".mha", ".nrrd", ".nhdr")
 FORMATS = {"vtkPolyData": ("vtp", "vtk", "ply", "stl", "obj"), "vtkImageData": ("vti",),
            "vtkMultiBlockDataSet": ("vtm",)}
 """Formats of the final output, by its data type (the first is the default)."""
+MAX_JOBS = 100_000
+"""Largest sweep accepted unless ``PVEROSION_MAX_JOBS`` says otherwise (0: no limit)."""
+
+EXAMPLE_BOUNDS = {"subdivisions": (0, 8), "resolution": (1, 1000), "n_around": (3, 100_000),
+                  "n_along": (1, 100_000), "n_major": (3, 100_000), "n_minor": (3, 100_000), "n_bumps": (0, 10_000),
+                  "seed": (0, None), "roughness": (0.0, None), "size": (1e-9, None), "radius": (1e-9, None),
+                  "height": (1e-9, None), "major_radius": (1e-9, None), "minor_radius": (1e-9, None),
+                  "finger_length": (1e-9, None), "finger_width": (1e-9, None)}
+"""Inclusive bounds of the procedural examples' options (counts beyond them exhaust memory; sizes are positive)."""
+
 _TOP_KEYS = ("name", "description", "seed", "input", "stages", "sweep", "outputs")
 _OUTPUT_DEFAULTS = {"format": "", "save_every": 0, "screenshot": False}
 
@@ -202,6 +213,9 @@ def _expand(doc: dict, *, text: str, source: Path | None, base: Path) -> Scenari
     name = doc.get("name", source.stem if source is not None else "scenario")
     if not isinstance(name, str) or not name:
         raise ScenarioError(f"name: must be a non-empty string; got {name!r}")
+    if name in (".", "..") or name.startswith(".") or any(c in name for c in "/\\\0:"):
+        raise ScenarioError(f"name: must be a plain name (it names the output folder), without '/', '\\', ':' "
+                            f"or a leading '.'; got {name!r}")
     if "input" not in doc:
         raise ScenarioError("[input]: missing (give example = NAME or file = PATH)")
     stages = doc.get("stages")
@@ -227,6 +241,11 @@ def _expand(doc: dict, *, text: str, source: Path | None, base: Path) -> Scenari
                                 f"with STAGE one of {', '.join(labels)}")
         if not isinstance(values, list) or not values:
             raise ScenarioError(f"[sweep] {key!r}: must be a non-empty list of values; got {values!r}")
+    size = math.prod(len(values) for values in sweep.values())
+    limit = max_jobs()
+    if size > limit:
+        raise ScenarioError(f"[sweep]: {' x '.join(str(len(v)) for v in sweep.values())} = {size} jobs, more than "
+                            f"the limit of {limit} (PVEROSION_MAX_JOBS); sweep fewer values")
     jobs = []
     keys = list(sweep)
     for index, combo in enumerate(itertools.product(*(sweep[k] for k in keys))):
@@ -243,6 +262,18 @@ def _expand(doc: dict, *, text: str, source: Path | None, base: Path) -> Scenari
                                 f"({first[job.id].label} / {job.label}); list each value once")
         first[job.id] = job
     return Scenario(name=name, path=source, text=text, jobs=tuple(jobs))
+
+
+def max_jobs() -> float:
+    """The most jobs a sweep may expand into: ``PVEROSION_MAX_JOBS`` (0: no limit) or :data:`MAX_JOBS`."""
+    text = os.environ.get("PVEROSION_MAX_JOBS", "").strip()
+    if not text:
+        return MAX_JOBS
+    try:
+        value = int(text)
+    except ValueError:
+        raise ScenarioError(f"PVEROSION_MAX_JOBS must be an integer; got {text!r}") from None
+    return math.inf if value <= 0 else value
 
 
 def _set_swept(table: dict, swept: dict, prefix: str) -> dict:
@@ -317,7 +348,10 @@ def _input(table: dict, *, seed: int, base: Path) -> dict:
     defaults = {p.name: p.default for p in inspect.signature(loader).parameters.values()}
     options = {k: v for k, v in table.items() if k != "example"}
     _unknown(options, tuple(defaults), f"[input] example {name!r}")
-    checked = {k: _check(Param(k, defaults[k], ""), v, "[input]") for k, v in options.items()}
+    checked = {}
+    for k, v in options.items():
+        low, high = EXAMPLE_BOUNDS.get(k, (None, None))
+        checked[k] = _check(Param(k, defaults[k], "", minimum=low, maximum=high), v, f"[input] example {name!r}")
     if "seed" in defaults and "seed" not in checked:
         checked["seed"] = seed
     return {"example": name, "options": checked}

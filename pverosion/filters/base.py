@@ -10,7 +10,11 @@ option is written in one place.
 
 from __future__ import annotations
 
+import math
+import signal
+import threading
 from collections.abc import Callable, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -22,13 +26,17 @@ from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkMultiBlockDataSet, vt
 from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline as SDDP
 
 from pverosion._runtime import stage_run
-from pverosion.kernels.validation import InvalidMeshError
+from pverosion.kernels.validation import InvalidMeshError, as_points
+from pverosion.limits import check_memory
 
 __all__ = [
     "ErosionFilter",
+    "check_interrupt",
+    "deferred_interrupt",
     "Param",
     "TimeSteppedFilter",
     "output_times",
+    "parse_numbers",
     "polydata_triangles",
     "replace_triangles",
     "set_field_value",
@@ -57,6 +65,13 @@ class Param:
     path : {"input", "output"}, optional
         The option names a file the filter reads (``"input"``) or writes
         (``"output"``); batch runs resolve such paths (see :mod:`pverosion.batch`).
+    numbers : int, optional
+        A string option holding comma-separated finite numbers: exactly this
+        many, or one or more when 0. Checked when set (empty means unset).
+    parse : callable, optional
+        ``parse(text)`` of a string option, raising ``ValueError`` for a bad
+        non-empty value; called when the option is set, so every front end
+        refuses it before running.
     """
 
     name: str
@@ -66,6 +81,8 @@ class Param:
     minimum: float | None = None
     maximum: float | None = None
     path: str | None = None
+    numbers: int | None = None
+    parse: Callable[[str], Any] | None = None
 
     @property
     def kind(self) -> type:
@@ -101,7 +118,31 @@ class Param:
             raise TypeError(f"{self.name} must be a string; got {value!r}")
         if self.choices is not None and value not in self.choices:
             raise ValueError(f"{self.name} must be one of {self.choices}; got {value!r}")
+        if value and self.numbers is not None:
+            parse_numbers(value, self.name, count=self.numbers or None)
+        if value and self.parse is not None:
+            try:
+                self.parse(value)
+            except (ValueError, TypeError) as exc:
+                message = str(exc)
+                raise ValueError(message if message.startswith(self.name) else f"{self.name}: {message}") from None
         return value
+
+
+def parse_numbers(text: str, name: str, *, count: int | None = None) -> list[float]:
+    """Comma- or space-separated numbers of a string option (exactly ``count`` if given); ``ValueError`` naming it."""
+    try:
+        values = [float(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        raise ValueError(f"{name} must be numbers separated by commas; got {text!r}") from None
+    if not values:
+        raise ValueError(f"{name} needs at least one number")
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f"{name} must be finite numbers; got {text!r}")
+    if count is not None and len(values) != count:
+        raise ValueError(f"{name} needs {count} numbers; got {len(values)} in {text!r}")
+    return values
+
 
 
 class ErosionFilter(VTKPythonAlgorithmBase):
@@ -111,9 +152,12 @@ class ErosionFilter(VTKPythonAlgorithmBase):
     gets one input data object per port, then the output.
     Keyword arguments of the constructor set options by their snake_case name.
 
-    Errors raised by :meth:`execute` are kept and re-raised by :meth:`run`
-    (VTK itself would only print them); a plain VTK pipeline sees the usual
-    "returned failure" error from the executive.
+    Any exception (``BaseException``, so ``KeyboardInterrupt`` too) raised in
+    a pipeline pass (information, update extent, data) is kept in
+    :attr:`last_error` and re-raised by :meth:`run` after ``Update()`` (VTK
+    itself would only print it); a plain VTK pipeline sees the usual
+    "returned failure" error from the executive and can read
+    :attr:`last_error`.
     """
 
     PARAMS: ClassVar[tuple[Param, ...]] = ()
@@ -143,6 +187,8 @@ class ErosionFilter(VTKPythonAlgorithmBase):
         )
         self._values = {p.name: p.default for p in self.PARAMS}
         self._error: BaseException | None = None
+        self.last_error: BaseException | None = None
+        """The exception of the last failed pipeline pass (None after a pass that succeeded)."""
         for name, value in options.items():
             self.set_option(name, value)
 
@@ -177,20 +223,58 @@ class ErosionFilter(VTKPythonAlgorithmBase):
         """All option values by snake_case name."""
         return dict(self._values)
 
+    def _guarded(self, work: Callable[[], Any], *, first: bool = False) -> int:
+        """Run one pipeline pass; keep any exception for :meth:`run_time` and return VTK's 0 (failure) or 1.
+
+        ``first`` marks the first pass of an update (information), which
+        forgets the error of an earlier update.
+        """
+        if first:
+            self._error = None
+        try:
+            work()
+        except BaseException as exc:  # noqa: BLE001 - kept and re-raised by run_time(); VTK would only print it
+            if self._error is None:
+                self._error = exc
+            self.last_error = exc
+            return 0
+        return 1
+
+    def RequestInformation(self, request, in_info, out_info):
+        """Publish the output's meta-data (:meth:`information`); errors are kept, see :meth:`run`."""
+        return self._guarded(lambda: self.information(out_info.GetInformationObject(0)), first=True)
+
+    def information(self, info) -> None:
+        """Fill the output information object ``info`` (meta-data such as TIME_STEPS); nothing by default."""
+        check_interrupt()
+
+    def RequestUpdateExtent(self, request, in_info, out_info):
+        """Pass the request upstream unchanged; errors are kept, see :meth:`run`."""
+        return self._guarded(check_interrupt)
+
     def RequestData(self, request, in_info, out_info):
         """Run :meth:`execute` on the input data object(s) and the output data object."""
-        self._error = None
-        try:
+        def work():
             inputs = [self.GetInputData(in_info, port, 0) for port in range(len(self.INPUT_PORTS))]
             out = self.GetOutputData(out_info, 0)
             self.UpdateProgress(0.0)
             with stage_run(self.command_name(), inputs[0].GetNumberOfPoints()):  # threads by size; compile notice
                 self.execute(*inputs, out)
             self.UpdateProgress(1.0)
-        except Exception as exc:  # noqa: BLE001 - kept and re-raised by run()
-            self._error = exc
-            return 0
-        return 1
+
+        status = self._guarded(work)
+        if status:
+            self.last_error = None
+        return status
+
+    def UpdateProgress(self, amount: float) -> None:
+        """Report progress ``amount`` in [0, 1]; raise ``KeyboardInterrupt`` here when one is pending.
+
+        Stages call this between their steps, so a deferred interrupt (see
+        :func:`deferred_interrupt`) stops a run within one step.
+        """
+        super().UpdateProgress(amount)
+        check_interrupt()
 
     def execute(self, inp, out) -> None:
         """Fill ``out`` from ``inp`` (one argument per input port); implemented by each stage."""
@@ -243,6 +327,7 @@ class ErosionFilter(VTKPythonAlgorithmBase):
         if self._error is not None:
             error, self._error = self._error, None
             raise error
+        check_interrupt()
         result = self.GetOutputDataObject(0).NewInstance()
         result.ShallowCopy(self.GetOutputDataObject(0))
         return result
@@ -296,8 +381,12 @@ class ErosionFilter(VTKPythonAlgorithmBase):
         return result
 
 
-def output_times(iterations: int, save_every: int | None) -> list[int]:
+def output_times(iterations: int, save_every: int | None) -> range | list[int]:
     """Steps to output: every ``save_every``-th of 0..iterations and the last (only the last when None/0).
+
+    The steps are produced lazily (a ``range``, with the last step appended
+    when ``save_every`` does not divide ``iterations``), so a long run never
+    holds a list of its steps.
 
     Raises
     ------
@@ -308,7 +397,27 @@ def output_times(iterations: int, save_every: int | None) -> list[int]:
         raise ValueError(f"save_every must be >= 0; got {save_every}")
     if not save_every:
         return [iterations]
-    return sorted(set(range(0, iterations + 1, save_every)) | {iterations})
+    steps = range(0, iterations + 1, save_every)
+    return steps if steps[-1] == iterations else _Appended(steps, iterations)
+
+
+class _Appended(Sequence):
+    """A range followed by one more value, as a lazy sequence."""
+
+    def __init__(self, head: range, last: int):
+        self.head, self.last = head, last
+
+    def __len__(self) -> int:
+        return len(self.head) + 1
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self)))]
+        if index < 0:
+            index += len(self)
+        if not 0 <= index < len(self):
+            raise IndexError(index)
+        return self.head[index] if index < len(self.head) else self.last
 
 
 class TimeSteppedFilter(ErosionFilter):
@@ -325,13 +434,14 @@ class TimeSteppedFilter(ErosionFilter):
         super().__init__(**options)
         self._time: float | None = None
 
-    def RequestInformation(self, request, in_info, out_info):
-        """Publish the time steps 0..iterations."""
+    def information(self, info) -> None:
+        """Publish the time steps 0..iterations, after checking that their list fits in memory."""
+        super().information(info)
         n = self.get_option("iterations")
-        info = out_info.GetInformationObject(0)
-        info.Set(SDDP.TIME_STEPS(), [float(t) for t in range(n + 1)], n + 1)
+        # the steps are held as doubles by NumPy, by VTK's information and by any consumer's copy
+        check_memory(3 * 8 * (n + 1), option="iterations", what=f"the list of {n + 1} time steps")
+        info.Set(SDDP.TIME_STEPS(), np.arange(n + 1, dtype=np.float64), n + 1)
         info.Set(SDDP.TIME_RANGE(), [0.0, float(n)], 2)
-        return 1
 
     def RequestData(self, request, in_info, out_info):
         """Read the requested time, then run :meth:`execute`."""
@@ -360,6 +470,46 @@ class TimeSteppedFilter(ErosionFilter):
         return n if self._time is None else round(min(max(self._time, 0.0), float(n)))
 
 
+class _Interrupt:
+    pending = False
+
+
+def check_interrupt() -> None:
+    """Raise ``KeyboardInterrupt`` if Ctrl-C was pressed inside :func:`deferred_interrupt`."""
+    if _Interrupt.pending:
+        _Interrupt.pending = False
+        raise KeyboardInterrupt
+
+
+@contextmanager
+def deferred_interrupt():
+    """Context manager: the first Ctrl-C (SIGINT) only marks an interrupt, raised at the next step boundary.
+
+    Stages check at every :meth:`ErosionFilter.UpdateProgress` and at the end
+    of each pass, so a run stops within one step at a point where its state is
+    whole, and the interrupt reaches the caller as ``KeyboardInterrupt``
+    through the usual error path. A second Ctrl-C interrupts at once. Outside
+    the main thread this does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def mark(signum, frame):
+        if _Interrupt.pending:  # second Ctrl-C: stop now
+            signal.default_int_handler(signum, frame)
+        _Interrupt.pending = True
+
+    previous = signal.signal(signal.SIGINT, mark)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        pending, _Interrupt.pending = _Interrupt.pending, False
+    if pending:
+        raise KeyboardInterrupt
+
+
 def _make_setter(name):
     def setter(self, value):
         self.set_option(name, value)
@@ -384,8 +534,8 @@ def polydata_triangles(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:
     Raises
     ------
     InvalidMeshError
-        If the mesh has no points, no polygons, triangle strips, or polygons
-        that are not triangles.
+        If the mesh has no points, points with NaN or infinite coordinates,
+        no polygons, triangle strips, or polygons that are not triangles.
     """
     if mesh is None or not isinstance(mesh, vtkPolyData):
         raise InvalidMeshError(f"expected a vtkPolyData surface; got {type(mesh).__name__}")
@@ -406,6 +556,8 @@ def polydata_triangles(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:
         )
     faces = numpy_support.vtk_to_numpy(polys.GetConnectivityArray()).reshape(-1, 3)
     points = numpy_support.vtk_to_numpy(mesh.GetPoints().GetData())
+    if not np.isfinite(points).all():
+        as_points(points)  # raises InvalidMeshError naming the vertices
     return points, faces
 
 

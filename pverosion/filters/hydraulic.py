@@ -7,24 +7,27 @@ Output: a MultiBlock with blocks ``mesh`` (the eroded surface) and
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pyvista as pv
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 
 from pverosion.filters.base import (
     Param,
-    polydata_triangles,
+    parse_numbers,
     set_field_value,
     set_multiblock,
     set_point_array,
 )
-from pverosion.filters.materials import parse_numbers
 from pverosion.filters.weathering import MeshSolverFilter, weathering_output
 from pverosion.kernels.geometry import average_edge_length
 from pverosion.kernels.hydraulic_erosion import MODELS, HydraulicSolver, ShearParameters
 from pverosion.kernels.mesh_evolution import REPAIR_MODES
 from pverosion.kernels.orientation import ORIENTATIONS
 from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters
+from pverosion.kernels.validation import InvalidMeshError
+from pverosion.limits import check_memory, check_work
 
 __all__ = ["HydraulicErosion", "parse_drains", "parse_emitters", "particles_polydata"]
 
@@ -39,6 +42,51 @@ def parse_emitters(text: str) -> list[Emitter]:
 def parse_drains(text: str) -> list[Drain]:
     """Drains from ``"plane:nx,ny,nz,d"`` / ``"box:xmin,ymin,zmin,xmax,ymax,zmax"`` separated by ``;``."""
     return [Drain.parse(part) for part in text.split(";") if part.strip()]
+
+
+BYTES_PER_PARTICLE = 2048
+"""Upper estimate of the fluid's memory per particle (state, work buffers, neighbour lists of about 60)."""
+
+NEIGHBOURS = 60
+"""Typical neighbours of a particle in the density solve, for the work estimate of one step."""
+
+
+def _check_resources(fluid: FluidParameters, emitters: list[Emitter], n_points: int, n_faces: int) -> None:
+    """Refuse a fluid whose particles or per-iteration work exceed the limits (:mod:`pverosion.limits`)."""
+    n = fluid.max_particles
+    for k, emitter in enumerate(emitters):
+        side = 2 * (emitter.radius // fluid.spacing) + 1  # the disc's lattice is built on a square of this side
+        check_memory(side * side * 64, option="emitter",
+                     what=f"emitter {k} (radius {emitter.radius:g}, {side:.3g}^2 lattice points of spacing "
+                          f"{fluid.spacing:.3g})")
+    check_memory(n * BYTES_PER_PARTICLE + 400 * (n_points + n_faces), option="max_particles",
+                 what=f"a fluid of up to {n} particles")
+    check_work(float(n) * fluid.substeps * fluid.solver_iterations * NEIGHBOURS, option="substeps",
+               what=f"{fluid.substeps} substeps of {fluid.solver_iterations} solver iterations over up to {n} "
+                    "particles (max_particles)")
+    # a substep sweeps each particle's path through the collision grid, cell by cell (cells of about r)
+    sub = fluid.dt / fluid.substeps
+    speed = max((e.speed or 0.0 for e in emitters), default=0.0)
+    radii = (float(np.linalg.norm(fluid.gravity)) * sub * sub + speed * sub) / fluid.radius
+    check_work(float(n) * fluid.substeps * radii, option="time_step",
+               what=f"a substep of {sub:.3g} s, in which a particle moves about {radii:.3g} radii,")
+
+
+def _warn_without_water(solver: HydraulicSolver) -> None:
+    """Warn when a run emitted no particle, or lost every particle it emitted, so nothing could erode."""
+    fluid = solver.fluid
+    if fluid.steps == 0:
+        return
+    if fluid.emitted == 0:
+        seconds = fluid.steps * fluid.dt
+        rates = ", ".join(f"emitter {k}: {e.rate:g} particles/s" for k, e in enumerate(fluid.emitters))
+        warnings.warn(f"hydraulic erosion: no particle was emitted in {fluid.steps} iterations ({seconds:.3g} s of "
+                      f"water at time_step {fluid.dt:.3g} s; {rates}); nothing eroded: raise the rate, time_step "
+                      "or iterations", UserWarning, stacklevel=2)
+    elif len(fluid.positions) == 0 and fluid.drained == fluid.emitted:
+        warnings.warn(f"hydraulic erosion: all {fluid.emitted} emitted particles were drained or left the domain "
+                      f"{fluid.domain[0].tolist()}..{fluid.domain[1].tolist()} at once; place the emitters inside "
+                      "the domain, above the mesh, or widen the domain", UserWarning, stacklevel=2)
 
 
 def particles_polydata(solver: HydraulicSolver) -> pv.PolyData:
@@ -82,13 +130,14 @@ class HydraulicErosion(MeshSolverFilter):
         Param("model", "curvature", "Erosion model: curvature (Skorkovska 2019 eqs. 6-7) or sediment (shear stress, "
               "thesis ch. 8).", choices=MODELS),
         Param("emitter", "", "Water sources x,y,z,dx,dy,dz,r,rate[,speed] (disc centre, direction, disc radius, "
-              "particles per second, speed), several separated by ';'."),
+              "particles per second, speed), several separated by ';'.", parse=parse_emitters),
         Param("drain", "", "Water sinks plane:nx,ny,nz,d (removes n.x > d) or box:xmin,ymin,zmin,xmax,ymax,zmax, "
-              "separated by ';'. Particles leaving the domain are always drained."),
-        Param("domain", "", "Box of the fluid xmin,ymin,zmin,xmax,ymax,zmax (empty: the mesh and emitters, padded)."),
+              "separated by ';'. Particles leaving the domain are always drained.", parse=parse_drains),
+        Param("domain", "", "Box of the fluid xmin,ymin,zmin,xmax,ymax,zmax (empty: the mesh and emitters, padded).",
+              numbers=6),
         Param("walls", False, "Keep particles inside the domain box (a tank) instead of draining those leaving it."),
         Param("radius", 0.0, "Particle radius (0: half the mesh's average edge length).", minimum=0.0),
-        Param("gravity", "0,0,-9.81", "Gravity vector gx,gy,gz in model units per second squared."),
+        Param("gravity", "0,0,-9.81", "Gravity vector gx,gy,gz in model units per second squared.", numbers=3),
         Param("time_step", 0.0, "Seconds per iteration (0: automatic from the particle radius and gravity).",
               minimum=0.0),
         Param("substeps", 2, "Fluid substeps per iteration.", minimum=1),
@@ -98,7 +147,8 @@ class HydraulicErosion(MeshSolverFilter):
               maximum=1.0),
         Param("max_particles", 250_000, "Emitters pause at this many particles.", minimum=1),
         Param("power", 1.0, "Power n of the shifted curvature (curvature model).", minimum=1.0),
-        Param("step_divisor", 10.0, "Divisor x: a vertex moves at most e_avg / x per iteration.", minimum=1e-6),
+        Param("step_divisor", 10.0, "Divisor x >= 1: a vertex moves at most e_avg / x per iteration (below 1 a step "
+              "could turn the surface inside out).", minimum=1.0),
         Param("influence", 1.0, "Region of influence d_influence of a particle (from its surface), in average "
               "edge lengths.", minimum=1e-6),
         Param("erosion_rate", 1e-3, "k of the erosion rate k (tau - tau_c)^a (sediment model).", minimum=0.0),
@@ -115,14 +165,23 @@ class HydraulicErosion(MeshSolverFilter):
         Param("orientation", "outward", "Face orientation to use (outward: the fluid is outside the mesh).",
               choices=ORIENTATIONS),
         Param("seed", 0, "Seed of the fluid's random numbers.", minimum=0),
+        Param("close_holes", False, "Close the holes of an open input mesh first (the fluid needs a closed mesh)."),
     )
 
     def _new_solver(self, inp) -> HydraulicSolver:
-        points, faces = polydata_triangles(inp)
+        points, faces, topology = self._surface(inp)
         emitters = parse_emitters(self.get_option("emitter"))
         drains = parse_drains(self.get_option("drain"))
         if not emitters:
             raise ValueError("hydraulic erosion needs water: give at least one emitter x,y,z,dx,dy,dz,r,rate")
+        holes = topology.n_boundary_edges
+        if holes and self.get_option("close_holes"):
+            from pverosion.hydraulic_scenes import fill_holes  # the scenes' hole filling (imports this module)
+
+            points, faces = fill_holes(points, faces)
+        elif holes:
+            raise InvalidMeshError(f"hydraulic erosion needs a closed mesh; the input has {holes} boundary edges "
+                                   "(holes): fill them first, or set close_holes=True to close them")
         radius = self.get_option("radius") or 0.5 * average_edge_length(np.asarray(points, np.float64),
                                                                         np.asarray(faces, np.int64))
         fluid = FluidParameters(
@@ -130,6 +189,7 @@ class HydraulicErosion(MeshSolverFilter):
             time_step=self.get_option("time_step") or None, substeps=self.get_option("substeps"),
             solver_iterations=self.get_option("solver_iterations"), viscosity=self.get_option("viscosity"),
             friction=self.get_option("friction"), max_particles=self.get_option("max_particles"))
+        _check_resources(fluid, emitters, len(points), len(faces))
         domain = None
         if self.get_option("domain"):
             box = parse_numbers(self.get_option("domain"), "domain", count=6)
@@ -144,6 +204,7 @@ class HydraulicErosion(MeshSolverFilter):
             repair=self.get_option("repair"), seed=self.get_option("seed"))
 
     def _fill(self, solver: HydraulicSolver, inp, out) -> None:
+        _warn_without_water(solver)
         mesh = vtkPolyData()
         weathering_output(solver, inp, mesh, prefix="hydraulic")
         set_point_array(mesh, "f_distance", solver.f_distance)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from vtkmodules.util import numpy_support
 
-from pverosion.filters.base import ErosionFilter, Param, set_field_value
+from pverosion.filters.base import ErosionFilter, Param, parse_numbers, set_field_value
 from pverosion.kernels.bsp import BSP_METHODS, BSPTree
 from pverosion.kernels.materials import (
     BSPMaterials,
@@ -17,19 +17,6 @@ from pverosion.kernels.materials import (
 __all__ = ["MaterialSampler", "MaterialsFromVolume", "grid_points", "parse_numbers", "store_sample"]
 
 ASSOCIATIONS = ("point", "cell")
-
-
-def parse_numbers(text: str, name: str, *, count: int | None = None) -> list[float]:
-    """Comma- or space-separated numbers of a string option (exactly ``count`` if given); ``ValueError`` naming it."""
-    try:
-        values = [float(v) for v in text.replace(",", " ").split()]
-    except ValueError:
-        raise ValueError(f"{name} must be numbers separated by commas; got {text!r}") from None
-    if not values:
-        raise ValueError(f"{name} needs at least one number")
-    if count is not None and len(values) != count:
-        raise ValueError(f"{name} needs {count} numbers; got {len(values)} in {text!r}")
-    return values
 
 
 def grid_points(image, association: str) -> np.ndarray:
@@ -75,12 +62,12 @@ class MaterialsFromVolume(ErosionFilter):
     INPUT_TYPE = "vtkImageData"
     OUTPUT_TYPE = "vtkImageData"
     PARAMS = (
-        Param("thresholds", "", "Material boundaries, comma separated (required), e.g. 40,100,160."),
+        Param("thresholds", "", "Material boundaries, comma separated (required), e.g. 40,100,160.", numbers=0),
         Param("array", "", "Input point array to threshold (default: the active scalars)."),
         Param("method", "complete", "complete (C-BSP, clip straddling faces) or simplified (S-BSP, face centre).",
               choices=BSP_METHODS),
         Param("seed", 0, "Seed of the face insertion order.", minimum=0),
-        Param("hardness", "", "Hardness per material, comma separated (default 1, 2, ..., m+1)."),
+        Param("hardness", "", "Hardness per material, comma separated (default 1, 2, ..., m+1).", numbers=0),
         Param("gradual_scale", 0.0, "Softer away from the boundaries over this distance (0: off).", minimum=0.0),
         Param("tree_file", "", "Also save the tree to this JSON file.", path="output"),
     )
@@ -143,7 +130,8 @@ class MaterialSampler(ErosionFilter):
     PARAMS = (
         Param("association", "point", "Sample at the grid points or at the cell centres.", choices=ASSOCIATIONS),
         Param("tree_file", "", "BSP tree JSON file to sample when no field is set from Python.", path="input"),
-        Param("hardness", "", "Hardness per material of the tree file, comma separated (default 1, 2, ...)."),
+        Param("hardness", "", "Hardness per material of the tree file, comma separated (default 1, 2, ...).",
+              numbers=0),
     )
 
     def __init__(self, *, field: MaterialField | None = None, **options):
@@ -168,6 +156,8 @@ class MaterialSampler(ErosionFilter):
 
     def execute(self, inp, out) -> None:
         """Sample the field at the grid of ``inp`` into ``out``."""
+        if inp.GetNumberOfPoints() == 0:
+            raise ValueError("the grid is empty: it has no points to sample at")
         field = self._current_field()
         out.ShallowCopy(inp)
         store_sample(field, inp, out, self.get_option("association"))

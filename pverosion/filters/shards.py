@@ -33,11 +33,11 @@ from pverosion.filters.base import (
     ErosionFilter,
     Param,
     TimeSteppedFilter,
+    parse_numbers,
     polydata_triangles,
     set_field_value,
     set_multiblock,
 )
-from pverosion.filters.materials import parse_numbers
 from pverosion.kernels.freeze_thaw import CORE, FreezeThawParameters, FreezeThawSimulation, PathRecord
 from pverosion.kernels.geometry import signed_volume
 from pverosion.kernels.seed_patterns import (
@@ -52,11 +52,15 @@ from pverosion.kernels.seed_patterns import (
 from pverosion.kernels.shard_geometry import LinkMesh, cell_surfaces, cells_boundary, link_polygons
 from pverosion.kernels.shards import ShardGraph as Graph
 from pverosion.kernels.shards import build_shards
+from pverosion.limits import check_memory, check_work
 
 __all__ = ["CORE_CHOICES", "PATTERNS", "FreezeThaw", "ShardGraph", "pattern_seeds", "shard_blocks"]
 
 PATTERNS = ("uniform", "grid", "hex", "slabs", "poisson", "vertices")
 CORE_CHOICES = ("none", "surface")
+
+BYTES_PER_SHARD = 16384
+"""Upper estimate of the memory of one shard (its clipped Voronoi cell, links and output surface)."""
 
 _GENERATION_PARAMS = (
     Param("cells", 1000, "About how many shards (seed points) to make.", minimum=1),
@@ -65,9 +69,9 @@ _GENERATION_PARAMS = (
     Param("jitter", 0.2, "Jitter of the grid, hex and slab patterns, as a fraction of the spacing.", minimum=0.0,
           maximum=0.49),
     Param("layers", "", "Slab thicknesses from the bottom up, as t1,t2,... (cycled; default: the spacing); hex: "
-          "the height of the column pieces (default: whole columns)."),
+          "the height of the column pieces (default: whole columns).", numbers=0),
     Param("tilt", 0.0, "Tilt of the slab pattern about x, in degrees.", minimum=-90.0, maximum=90.0),
-    Param("radius_gradient", "0,0,0", "Poisson disc: change of the radius per unit length, as x,y,z."),
+    Param("radius_gradient", "0,0,0", "Poisson disc: change of the radius per unit length, as x,y,z.", numbers=3),
     Param("seed", 0, "Random seed of the seed pattern and of the water paths.", minimum=0),
 )
 
@@ -223,6 +227,8 @@ class _ShardSource:
         key = (inp.GetMTime(), self._generation_options())
         if getattr(self, "_graph_key", None) != key:
             points, faces = polydata_triangles(inp)
+            cells = self.get_option("cells")
+            check_memory(cells * BYTES_PER_SHARD, option="cells", what=f"a graph of {cells} shards")
             seeds = pattern_seeds(
                 points, faces, pattern=self.get_option("pattern"), cells=self.get_option("cells"),
                 jitter=self.get_option("jitter"),
@@ -286,11 +292,11 @@ class FreezeThaw(_ShardSource, TimeSteppedFilter):
         *_GENERATION_PARAMS,
         Param("core", "none", "Cells never removed: none, or surface (the cells on the mesh surface).",
               choices=CORE_CHOICES),
-        Param("core_plane", "", "Also make core the cells whose seed x has n . x >= d, as nx,ny,nz,d."),
-        Param("core_window", "", "Sphere x,y,z,r whose cells are not core (an opening for the erosion)."),
-        Param("water_direction", "0,0,-1", "Mean direction the water travels in, as x,y,z."),
+        Param("core_plane", "", "Also make core the cells whose seed x has n . x >= d, as nx,ny,nz,d.", numbers=4),
+        Param("core_window", "", "Sphere x,y,z,r whose cells are not core (an opening for the erosion).", numbers=4),
+        Param("water_direction", "0,0,-1", "Mean direction the water travels in, as x,y,z.", numbers=3),
         Param("spread", 0.0, "Half-angle (degrees) of the cone of water directions.", minimum=0.0, maximum=180.0),
-        Param("gravity", "0,0,-1", "Direction water flows in between links, as x,y,z."),
+        Param("gravity", "0,0,-1", "Direction water flows in between links, as x,y,z.", numbers=3),
         Param("resistance", 0.0, "Resistance rho of the rock to the flow, in [0, 1] (constant; Python front ends "
               "also take a function or a 3-D image).", minimum=0.0, maximum=1.0),
         Param("water", 1.0, "Water per path, w_in.", minimum=1e-12),
@@ -388,6 +394,10 @@ class FreezeThaw(_ShardSource, TimeSteppedFilter):
             self._step = 0
         sim = self._simulation
         per_step = self.get_option("paths_per_step")
+        visits = 4.0 * graph.n_cells ** (1.0 / 3.0) + 1.0  # links a path crosses, about the graph's diameter
+        check_work(per_step * visits * 50.0, option="paths_per_step", what=f"{per_step} water paths")
+        if self.get_option("record_paths"):
+            check_memory(per_step * 64 * 16, option="paths_per_step", what=f"the record of {per_step} water paths")
         record = None
         start = self._step
         while self._step < step:

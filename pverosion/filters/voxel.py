@@ -14,18 +14,28 @@ The filter adds ``voxel_class`` (0 EMPTY, 1 FULL, 2 MAT), ``dissolved``,
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pyvista as pv
 from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonDataModel import vtkImageData
 
-from pverosion.filters.base import Param, TimeSteppedFilter, polydata_triangles, set_field_value, set_multiblock
-from pverosion.filters.materials import grid_points, parse_numbers
+from pverosion.filters.base import (
+    Param,
+    TimeSteppedFilter,
+    parse_numbers,
+    polydata_triangles,
+    set_field_value,
+    set_multiblock,
+)
+from pverosion.filters.materials import grid_points
 from pverosion.kernels.materials import MaterialField
 from pverosion.kernels.pressure import LIQUID
 from pverosion.kernels.voxel_erosion import MODELS, ErosionParameters, VoxelErosionSolver
-from pverosion.kernels.voxel_fluid import ADVECTION_SCHEMES, cell_velocity
+from pverosion.kernels.voxel_fluid import ADVECTION_SCHEMES, VoxelFluid, cell_velocity
 from pverosion.kernels.voxelize import height_field_amount, voxelize_mesh
+from pverosion.limits import check_memory, check_work
 
 __all__ = [
     "EXTRACTORS",
@@ -296,6 +306,28 @@ def voxel_solver(grid, *, params: ErosionParameters | None = None, source_veloci
     )
 
 
+BYTES_PER_VOXEL = 400
+"""Upper estimate of the solver's memory per voxel (about 50 float64 fields and work arrays)."""
+
+OPERATIONS_PER_SUBSTEP = 200
+"""Estimated operations per voxel of one substep without diffusion (advection, pressure solve, transport)."""
+
+
+def _check_step_work(fluid: VoxelFluid, cells: int, dt: float) -> None:
+    """Refuse a time step whose CFL substeps and diffusion passes would take effectively forever."""
+    h, speed = fluid.spacing, float(np.linalg.norm(fluid.source_velocity))
+    # the substeps keep the fastest face under cfl cells: at least the source's speed and gravity's fall
+    sub = min(math.sqrt(fluid.cfl * h / fluid.gravity) if fluid.gravity > 0 else math.inf,
+              fluid.cfl * h / speed if speed > 0 else math.inf, dt)
+    substeps = math.ceil(dt / sub)
+    option = "source_velocity" if speed > 0 and fluid.cfl * h / speed < dt else "time_step"
+    check_work(float(cells) * substeps * OPERATIONS_PER_SUBSTEP, option=option,
+               what=f"a time step of {dt:.3g} s in at least {substeps:.3g} CFL substeps over {cells} voxels")
+    passes = math.ceil(fluid.viscosity * sub / h**2 / 0.15)  # explicit diffusion passes per substep
+    check_work(float(cells) * substeps * passes * 20, option="viscosity",
+               what=f"viscosity {fluid.viscosity:.3g} ({passes:.3g} diffusion passes per substep over {cells} voxels)")
+
+
 class VoxelErosion(TimeSteppedFilter):
     """Voxel hydraulic erosion (Beneš et al. 2006): water flow eroding and depositing material.
 
@@ -334,7 +366,7 @@ class VoxelErosion(TimeSteppedFilter):
         Param("viscosity", 1e-6, "Kinematic viscosity of the water (m^2/s).", minimum=0.0),
         Param("advection", "semi-lagrangian", "Velocity advection: semi-lagrangian (fastest) or maccormack "
               "(keeps the flow's inertia, about twice the advection time).", choices=ADVECTION_SCHEMES),
-        Param("source_velocity", "0,0,0", "Velocity of the water at source voxels (m/s), as x,y,z."),
+        Param("source_velocity", "0,0,0", "Velocity of the water at source voxels (m/s), as x,y,z.", numbers=3),
         Param("tolerance", 1e-6, "Projection tolerance on max |div u| dt / h.", minimum=1e-14),
         Param("extraction", "flying_edges", "Isosurface extraction of the material.", choices=EXTRACTORS),
     )
@@ -344,12 +376,18 @@ class VoxelErosion(TimeSteppedFilter):
         self._stats: dict[str, list[float]] = {}
 
     def _new_solver(self, inp) -> VoxelErosionSolver:
-        velocity = parse_numbers(self.get_option("source_velocity"), "source_velocity")
+        velocity = parse_numbers(self.get_option("source_velocity"), "source_velocity", count=3)
         params = ErosionParameters(**{name: self.get_option(name) for name in (
             "model", "friction", "erosion_rate", "deposition_rate", "fall_velocity", "tau_erosion", "tau_deposition",
             "capacity", "saturation", "time_scale")})
-        return voxel_solver(inp, params=params, source_velocity=velocity, viscosity=self.get_option("viscosity"),
-                            tolerance=self.get_option("tolerance"), advection=self.get_option("advection"))
+        cells = inp.GetNumberOfPoints()
+        if cells == 0:
+            raise ValueError("the voxel grid is empty: it has no voxels")
+        check_memory(cells * BYTES_PER_VOXEL, option="input", what=f"the solver of a grid of {cells} voxels")
+        solver = voxel_solver(inp, params=params, source_velocity=velocity, viscosity=self.get_option("viscosity"),
+                              tolerance=self.get_option("tolerance"), advection=self.get_option("advection"))
+        _check_step_work(solver.fluid, cells, self.get_option("time_step"))
+        return solver
 
     def _record(self, solver: VoxelErosionSolver, figures: dict) -> None:
         values = {"solid": float(solver.amount.sum()), "dissolved": float(solver.fluid.material.sum()),

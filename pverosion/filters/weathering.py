@@ -16,6 +16,8 @@ from pverosion.filters.base import (
 )
 from pverosion.kernels.mesh_evolution import REPAIR_MODES, GuardedMeshSolver
 from pverosion.kernels.orientation import ORIENTATIONS
+from pverosion.kernels.topology import EdgeTopology, edge_topology
+from pverosion.kernels.validation import InvalidMeshError
 from pverosion.kernels.weathering import DIRECTIONS, Erodibility, WeatheringSolver
 
 __all__ = ["MeshSolverFilter", "Weathering", "weathering_output"]
@@ -77,6 +79,20 @@ class MeshSolverFilter(TimeSteppedFilter):
     def _new_solver(self, inp) -> GuardedMeshSolver:
         raise NotImplementedError
 
+    @staticmethod
+    def _surface(inp) -> tuple[np.ndarray, np.ndarray, EdgeTopology]:
+        """Points (V, 3), triangles (F, 3) and edge topology of ``inp``; ``InvalidMeshError`` if it is non-manifold.
+
+        A surface that evolves needs every edge between at most two faces:
+        curvature and the self-intersection guard are undefined elsewhere.
+        """
+        points, faces = polydata_triangles(inp)
+        topology = edge_topology(np.asarray(faces, np.int64), len(points))
+        if topology.n_nonmanifold_edges:
+            raise InvalidMeshError(f"mesh has {topology.n_nonmanifold_edges} non-manifold edges (shared by more than "
+                                   "two faces): repair it first (pverosion repair, or pverosion.repair)")
+        return points, faces, topology
+
     def _fill(self, solver: GuardedMeshSolver, inp, out) -> None:
         raise NotImplementedError
 
@@ -136,7 +152,8 @@ class Weathering(MeshSolverFilter):
         Param("iterations", 100, "Number of weathering steps (time steps 0..iterations).", minimum=0),
         Param("power", 1.0, "Power modifier n >= 1 of the curvature (eq. 5): larger spares flat regions.",
               minimum=1.0),
-        Param("step_divisor", 10.0, "Divisor x: the largest displacement per step is e_avg / x.", minimum=1e-6),
+        Param("step_divisor", 10.0, "Divisor x >= 1: the largest displacement per step is e_avg / x (below 1 a step "
+              "could turn the surface inside out).", minimum=1.0),
         Param("direction", "laplacian", "Displacement direction: unit uniform Laplacian or inward normal.",
               choices=DIRECTIONS),
         Param("min_edge_ratio", 0.1, "Collapse edges shorter than this times e_avg after every step (0: off).",
@@ -150,7 +167,7 @@ class Weathering(MeshSolverFilter):
     )
 
     def _new_solver(self, inp) -> WeatheringSolver:
-        points, faces = polydata_triangles(inp)
+        points, faces, _ = self._surface(inp)
         return WeatheringSolver(
             points,
             faces,

@@ -1925,6 +1925,9 @@ class ParticleFluid:
             self._advance[k] += speed * self.dt
             direction = np.array(emitter.direction)
             while self._advance[k] >= spacing:
+                if room <= 0:  # paused at max_particles: skip the layers that no longer fit without building them
+                    self._advance[k] %= spacing
+                    break
                 self._advance[k] -= spacing
                 layer = np.array(emitter.position) + direction * self._advance[k] + offsets
                 if chance < 1.0:

@@ -221,12 +221,22 @@ class _Hierarchy:
 
 
 @njit(cache=True, parallel=True)
-def _dot(a, b):
-    nx = a.shape[0]
-    partial = np.zeros(nx)
-    for i in prange(nx):
+def _dot_rows(a, b, partial):
+    """partial[i] = sum(a[i] * b[i]): one slab per thread, each summed in the same order whatever the threads."""
+    for i in prange(a.shape[0]):
         partial[i] = np.sum(a[i] * b[i])
-    return partial.sum()
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    """Dot product of two (nx, ny, nz) arrays, bit-identical for any thread count.
+
+    The slabs are summed in parallel, the slab sums sequentially: a parallel
+    reduction (``partial.sum()`` inside a parallel kernel) would split the
+    sum by thread and change its rounding with the thread count.
+    """
+    partial = np.empty(a.shape[0])
+    _dot_rows(a, b, partial)
+    return float(np.sum(partial))
 
 
 @njit(cache=True, parallel=True)

@@ -140,7 +140,7 @@ def _rates(liquid, amount, water, load, speed, cohesive, e, d, omega, tau_ce, ta
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def _erode(liquid, amount, erodibility, load, ero, dt):
-    """Move eroded material from MAT cells into the adjacent liquid cells; return the amount moved."""
+    """Move eroded material from MAT cells into the adjacent liquid cells; return what each cell gained (nx, ny, nz)."""
     nx, ny, nz = liquid.shape
     ratio = np.zeros((nx, ny, nz))
     taken = np.zeros((nx, ny, nz))
@@ -174,7 +174,7 @@ def _erode(liquid, amount, erodibility, load, ero, dt):
             for k in range(nz):
                 load[i, j, k] += gained[i, j, k]
                 amount[i, j, k] = max(amount[i, j, k] - taken[i, j, k], 0.0)
-    return gained.sum()
+    return gained
 
 
 @njit(cache=True, inline="always")
@@ -187,7 +187,7 @@ def _weight(amount, shape, p, q, r, dk):
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def _deposit(liquid, amount, load, dep, dt):
-    """Settle dissolved material onto adjacent MAT cells with room; return the amount deposited."""
+    """Settle dissolved material onto adjacent MAT cells with room; return what each cell received (nx, ny, nz)."""
     nx, ny, nz = liquid.shape
     shape = liquid.shape
     wanted = np.zeros((nx, ny, nz))  # per liquid cell, what it sends (before the acceptors' limits)
@@ -236,7 +236,7 @@ def _deposit(liquid, amount, load, dep, dt):
             for k in range(nz):
                 load[i, j, k] = max(load[i, j, k] - sent[i, j, k], 0.0)
                 amount[i, j, k] = min(amount[i, j, k] + received[i, j, k], 1.0)
-    return received.sum()
+    return received
 
 
 @njit(cache=True, error_model="numpy")
@@ -321,8 +321,9 @@ def erosion_step(
     ero, dep = _rates(liquid, amount, water, load, speed, cohesive, params.erosion_rate, params.deposition_rate,
                       params.fall_velocity, params.tau_erosion, params.tau_deposition, params.friction,
                       params.density, params.capacity, params.saturation, params.time_scale)
-    eroded = _erode(liquid, amount, erodibility, load, ero, dt)
-    deposited = _deposit(liquid, amount, load, dep, dt)
+    # summed here, not in the parallel kernels, whose reductions would depend on the thread count
+    eroded = float(np.sum(_erode(liquid, amount, erodibility, load, ero, dt)))
+    deposited = float(np.sum(_deposit(liquid, amount, load, dep, dt)))
     saturated = _saturate(liquid, amount, water, load, params.saturation)
     return {"eroded": float(eroded), "deposited": float(deposited), "saturated": int(saturated)}
 

@@ -1,0 +1,377 @@
+"""Bad input never passes silently: every front end refuses it with a message naming the problem.
+
+Each case runs a CLI subcommand (in this process, so a traceback would fail the
+test) and, where one exists, the matching Python function, and checks: a
+non-zero exit, the message, the input files unchanged, and no output or hidden
+leftover in the folder. The memory limit is fixed at 1 GiB so that the
+absurd-size cases are refused the same way on any machine.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import pyvista as pv
+
+import pverosion
+from pverosion.batch import ScenarioError, run_batch
+from pverosion.cli import main
+from pverosion.filters.base import output_times
+from pverosion.io import write_atomic
+from pverosion.kernels.validation import InvalidMeshError
+from pverosion.limits import ResourceLimitError, check_memory, memory_limit
+
+ROOT = Path(__file__).resolve().parents[1]
+EMITTER = "0,0,2,0,0,-1,0.3,200"
+
+
+@pytest.fixture(autouse=True)
+def _limits(monkeypatch):
+    monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "1G")
+    monkeypatch.delenv("PVEROSION_WORK_LIMIT", raising=False)
+
+
+def _sphere() -> pv.PolyData:
+    return pv.Sphere(theta_resolution=12, phi_resolution=12)
+
+
+def _grid() -> pv.ImageData:
+    from pverosion.voxel_scenes import spring_grid
+
+    return spring_grid(shape=(12, 10, 10))
+
+
+def _files(folder: Path) -> dict[str, str]:
+    """Every file and folder under ``folder`` (hidden ones included) with the checksum of each file."""
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "dir"
+            for p in sorted(folder.rglob("*"))}
+
+
+@pytest.fixture
+def inputs(tmp_path) -> Path:
+    """A folder of good and bad input files."""
+    _sphere().save(tmp_path / "sphere.vtp")
+    open_mesh = _sphere().remove_cells([0, 1, 2])
+    open_mesh.save(tmp_path / "open.vtp")
+    nan = _sphere()
+    nan.points[3] = np.nan
+    nan.save(tmp_path / "nan.vtp")
+    inf = _sphere()
+    inf.points[5, 1] = np.inf
+    inf.save(tmp_path / "inf.vtp")
+    pv.Plane(i_resolution=3, j_resolution=3).save(tmp_path / "quads.vtp")
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1.0]])
+    pv.PolyData.from_regular_faces(points, np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])).save(tmp_path / "fan.vtp")
+    _grid().save(tmp_path / "grid.vti")
+    pv.ImageData().save(tmp_path / "empty.vti")
+    (tmp_path / "zero.vtp").write_bytes(b"")
+    (tmp_path / "garbage.ply").write_bytes(np.random.default_rng(0).bytes(2000))
+    (tmp_path / "folder.vtp").mkdir()
+    return tmp_path
+
+
+# (CLI arguments, expected message (regex), Python call or None)
+CASES = {
+    "missing file": (["weather", "missing.vtp", "-o", "out.vtp"], r"no such file", None),
+    "empty file": (["weather", "zero.vtp", "-o", "out.vtp"], r"zero.vtp is empty", None),
+    "garbage file": (["curvature", "garbage.ply", "-o", "out.vtp"], r"garbage.ply", None),
+    "image to a mesh stage": (["weather", "grid.vti", "-o", "out.vtp"], r"holds an image .*not a surface", None),
+    "mesh to a volume stage": (["voxel", "sphere.vtp", "-o", "out.vtm"], r"not an image|needs an ImageData",
+                               lambda d: pverosion.voxel_erosion(pv.read(d / "sphere.vtp"))),
+    "empty image to sample-materials": (["sample-materials", "empty.vti", "-o", "out.vti", "--tree-file", "t.json"],
+                                        r"the grid is empty", None),
+    "empty image to voxel": (["voxel", "empty.vti", "-o", "out.vtm"], r"the voxel grid is empty",
+                             lambda d: pverosion.voxel_erosion(pv.read(d / "empty.vti"))),
+    "NaN points, weather": (["weather", "nan.vtp", "-o", "out.vtp"], r"NaN or infinite coordinates at 1 vertices",
+                            lambda d: pverosion.weather(pv.read(d / "nan.vtp"))),
+    "inf points, hydraulic": (["hydraulic", "inf.vtp", "-o", "out.vtm", "--emitter", EMITTER],
+                              r"NaN or infinite coordinates",
+                              lambda d: pverosion.hydraulic_erosion(pv.read(d / "inf.vtp"), emitters=EMITTER)),
+    "NaN points, shards": (["shard-graph", "nan.vtp", "-o", "out.vtm"], r"NaN or infinite coordinates",
+                           lambda d: pverosion.shard_graph(pv.read(d / "nan.vtp"))),
+    "non-triangles": (["curvature", "quads.vtp", "-o", "out.vtp"], r"not triangles",
+                      lambda d: pverosion.curvature(pv.read(d / "quads.vtp"))),
+    "non-manifold": (["weather", "fan.vtp", "-o", "out.vtp"], r"non-manifold edges",
+                     lambda d: pverosion.weather(pv.read(d / "fan.vtp"))),
+    "open mesh, hydraulic": (["hydraulic", "open.vtp", "-o", "out.vtm", "--emitter", EMITTER],
+                             r"needs a closed mesh.*--close-holes",
+                             lambda d: pverosion.hydraulic_erosion(pv.read(d / "open.vtp"), emitters=EMITTER)),
+    "NaN option": (["weather", "sphere.vtp", "-o", "out.vtp", "--power", "nan"], r"--power must be finite",
+                   lambda d: pverosion.weather(_sphere(), power=float("nan"))),
+    "inf option": (["voxel", "grid.vti", "-o", "out.vtm", "--time-step", "inf"], r"--time-step must be finite",
+                   lambda d: pverosion.voxel_erosion(_grid(), time_step=float("inf"))),
+    "negative option": (["weather", "sphere.vtp", "-o", "out.vtp", "--iterations", "-1"], r"--iterations must be >= 0",
+                        lambda d: pverosion.weather(_sphere(), iterations=-1)),
+    "step divisor that inverts the mesh": (["weather", "sphere.vtp", "-o", "out.vtp", "--step-divisor", "0.1"],
+                                           r"--step-divisor must be >= 1",
+                                           lambda d: pverosion.weather(_sphere(), step_divisor=0.1)),
+    "NaN vector component": (["voxel", "grid.vti", "-o", "out.vtm", "--source-velocity", "1,nan,0"],
+                             r"--source-velocity must be finite",
+                             lambda d: pverosion.voxel_erosion(_grid(), source_velocity=(1.0, float("nan"), 0.0))),
+    "short vector": (["hydraulic", "sphere.vtp", "-o", "out.vtm", "--emitter", EMITTER, "--gravity", "0,0"],
+                     r"--gravity needs 3 numbers", None),
+    "malformed emitter": (["hydraulic", "sphere.vtp", "-o", "out.vtm", "--emitter", "1,2"], r"8 or 9 numbers",
+                          lambda d: pverosion.hydraulic_erosion(_sphere(), emitters="1,2")),
+    "bad output extension": (["weather", "sphere.vtp", "-o", "out.yi8"], r"-o out.yi8: .*got '.yi8'", None),
+    "output is a folder": (["weather", "sphere.vtp", "-o", "folder.vtp"], r"is a folder", None),
+    "output under a file": (["weather", "sphere.vtp", "-o", "sphere.vtp/out.vtp"], r"is not a folder", None),
+    "MultiBlock to .vtp": (["hydraulic", "sphere.vtp", "-o", "out.vtp", "--emitter", EMITTER],
+                           r"MultiBlockDataSet result is written as .vtm", None),
+    "series not .pvd": (["weather", "sphere.vtp", "-o", "out.vtp", "--save-every", "1", "--series", "s.txt"],
+                        r"a time series is a .pvd file", None),
+    "absurd iterations": (["weather", "sphere.vtp", "-o", "out.vtp", "--iterations", "1000000000"],
+                          r"--iterations: the list of 1000000001 time steps would need about 22.4 GiB",
+                          lambda d: pverosion.weather(_sphere(), iterations=10**9)),
+    "absurd hydraulic time step": (["hydraulic", "sphere.vtp", "-o", "out.vtm", "--iterations", "3", "--emitter",
+                                    EMITTER, "--time-step", "1e6"], r"--time-step: a substep of 5e\+05 s", None),
+    "absurd substeps": (["hydraulic", "sphere.vtp", "-o", "out.vtm", "--emitter", EMITTER, "--substeps", "1000000000"],
+                        r"--substeps: 1000000000 substeps", None),
+    "absurd max particles": (["hydraulic", "sphere.vtp", "-o", "out.vtm", "--emitter", EMITTER, "--max-particles",
+                              "1000000000"], r"--max-particles: a fluid of up to 1000000000 particles", None),
+    "absurd voxel time step": (["voxel", "grid.vti", "-o", "out.vtm", "--iterations", "2", "--time-step", "1e9"],
+                               r"--time-step: a time step of 1e\+09 s",
+                               lambda d: pverosion.voxel_erosion(_grid(), iterations=2, time_step=1e9)),
+    "absurd viscosity": (["voxel", "grid.vti", "-o", "out.vtm", "--viscosity", "1e9"], r"--viscosity: viscosity 1e\+09",
+                         None),
+    "absurd source velocity": (["voxel", "grid.vti", "-o", "out.vtm", "--source-velocity", "1e9,0,0"],
+                               r"--source-velocity: a time step", None),
+    "absurd cells": (["shard-graph", "sphere.vtp", "-o", "out.vtm", "--cells", "1000000000"],
+                     r"--cells: a graph of 1000000000 shards would need",
+                     lambda d: pverosion.shard_graph(_sphere(), cells=10**9)),
+    "absurd paths per step": (["shards", "sphere.vtp", "-o", "out.vtm", "--cells", "20", "--iterations", "1",
+                               "--paths-per-step", "1000000000000"], r"--paths-per-step: 1000000000000 water paths",
+                              None),
+}
+
+
+@pytest.mark.parametrize("case", list(CASES), ids=list(CASES))
+def test_cli_refuses_bad_input_and_leaves_no_trace(case, inputs, capsys):
+    argv, message, _ = CASES[case]
+    before = _files(inputs)
+    cwd = os.getcwd()
+    os.chdir(inputs)
+    try:
+        status = main(argv)
+    finally:
+        os.chdir(cwd)
+    err = capsys.readouterr().err
+    assert status == 2, err
+    assert "Traceback" not in err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith(f"pverosion {argv[0]}: error: "), err
+    import re
+
+    assert re.search(message, last), last
+    assert _files(inputs) == before  # inputs unchanged, no output, no hidden leftovers
+
+
+@pytest.mark.filterwarnings("ignore:The VTK reader")  # VTK's note on the inf file's array range
+@pytest.mark.parametrize("case", [c for c in CASES if CASES[c][2] is not None],
+                         ids=[c for c in CASES if CASES[c][2] is not None])
+def test_python_function_refuses_the_same_input(case, inputs):
+    argv, message, call = CASES[case]
+    before = _files(inputs)
+    plain = message.replace("--", "").replace("-", "[-_]")  # the Python spelling of the option names
+    with pytest.raises((ValueError, TypeError)) as info:
+        call(inputs)
+    import re
+
+    assert re.search(plain, str(info.value)), str(info.value)
+    assert _files(inputs) == before
+
+
+def test_absurd_sizes_are_refused_before_anything_is_allocated(monkeypatch):
+    # the estimate alone decides: far beyond any memory, the request never reaches an allocation
+    monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "0")
+    assert memory_limit() == float("inf")
+    monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "2G")
+    assert memory_limit() == 2 * 1024**3
+    with pytest.raises(ResourceLimitError, match=r"cells: the graph would need about 3.0 GiB.*PVEROSION_MEMORY_LIMIT"):
+        check_memory(3 * 1024**3, option="cells", what="the graph")
+    check_memory(1024**3, option="cells", what="the graph")
+    with pytest.raises(ValueError, match="PVEROSION_MEMORY_LIMIT must be a number of bytes"):
+        monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "lots")
+        memory_limit()
+
+
+def test_output_times_are_lazy():
+    steps = output_times(10**12, 1)
+    assert len(steps) == 10**12 + 1 and steps[-1] == 10**12
+    assert list(output_times(10, 4)) == [0, 4, 8, 10]
+    assert list(output_times(8, 4)) == [0, 4, 8]
+    assert list(output_times(7, None)) == [7]
+
+
+def test_open_mesh_is_closed_on_request(inputs):
+    mesh = pv.read(inputs / "open.vtp")
+    with pytest.raises(InvalidMeshError, match="close_holes=True"):
+        pverosion.hydraulic_erosion(mesh, emitters=EMITTER, iterations=0)
+    result = pverosion.hydraulic_erosion(mesh, emitters=EMITTER, iterations=0, close_holes=True)
+    closed = result["mesh"]
+    assert closed.n_cells > mesh.n_cells
+    assert closed.extract_feature_edges(boundary_edges=True, feature_edges=False, manifold_edges=False,
+                                        non_manifold_edges=False).n_cells == 0
+
+
+def test_a_run_that_emits_nothing_warns(inputs):
+    with pytest.warns(UserWarning, match=r"no particle was emitted in 2 iterations"):
+        pverosion.hydraulic_erosion(_sphere(), emitters="0,0,2,0,0,-1,0.3,0.001", iterations=2)
+
+
+# --- the error path of the VTK pipeline ----------------------------------------------------------------------
+
+
+def test_an_error_in_request_information_reaches_the_caller_and_nothing_is_written(tmp_path):
+    from pverosion.filters.weathering import Weathering
+
+    alg = Weathering(iterations=10**9)
+    with pytest.raises(ResourceLimitError, match="iterations"):
+        alg.run(_sphere())
+    assert isinstance(alg.last_error, ResourceLimitError)  # kept for the ParaView layer
+    alg.SetIterations(2)
+    out = pv.wrap(alg.run(_sphere()))  # the filter recovers once the option is fixed
+    assert out.n_points == _sphere().n_points and alg.last_error is None
+
+
+def test_keyboard_interrupt_inside_a_pass_is_reraised(monkeypatch):
+    from pverosion.filters.weathering import Weathering
+
+    alg = Weathering(iterations=3)
+
+    def interrupted(self, info):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(Weathering, "information", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        alg.run(_sphere())
+
+
+# --- outputs ----------------------------------------------------------------------------------------------------
+
+
+def test_vtm_blocks_are_named_after_the_output_and_replaced(tmp_path):
+    blocks = pv.MultiBlock({"a": pv.Sphere(), "b": pv.Cube()})
+    old = os.umask(0o022)
+    try:
+        write_atomic(blocks, tmp_path / "out.vtm")
+        write_atomic(pv.MultiBlock({"a": pv.Cube()}), tmp_path / "out.vtm")
+    finally:
+        os.umask(old)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "out.vtm"]
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["out_0.vtp"]
+    again = pv.read(tmp_path / "out.vtm")
+    assert again.n_blocks == 1 and again[0].n_cells == 6
+    assert (tmp_path / "out.vtm").stat().st_mode & 0o777 == 0o644
+    assert (tmp_path / "out" / "out_0.vtp").stat().st_mode & 0o777 == 0o644
+
+
+def test_files_honour_the_umask(tmp_path):
+    old = os.umask(0o027)
+    try:
+        write_atomic(pv.Sphere(), tmp_path / "a.vtp")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "a.vtp").stat().st_mode & 0o777 == 0o640
+
+
+# --- Ctrl-C --------------------------------------------------------------------------------------------------
+
+
+def _pvd_entries(path: Path) -> int:
+    try:
+        return path.read_text().count("<DataSet ")
+    except OSError:
+        return 0
+
+
+@pytest.mark.parametrize("after_steps", [1, 3])
+def test_ctrl_c_stops_a_series_run_cleanly(tmp_path, after_steps):
+    pv.Sphere(theta_resolution=60, phi_resolution=60).save(tmp_path / "ball.vtp")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    command = [sys.executable, "-m", "pverosion", "weather", "ball.vtp", "-o", "out.vtp", "--iterations", "1000000",
+               "--save-every", "2", "--series", "s.pvd", "--check-every", "0"]
+    proc = subprocess.Popen(command, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 600
+        while _pvd_entries(tmp_path / "s.pvd") < after_steps and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert proc.poll() is None, proc.communicate()
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err
+    assert "interrupted" in err and "Traceback" not in err
+    assert not (tmp_path / "out.vtp").exists()
+    reader = pv.get_reader(tmp_path / "s.pvd")
+    assert len(reader.time_values) >= after_steps
+    for t in reader.time_values:  # every listed step is complete
+        reader.set_active_time_value(t)
+        step = reader.read()[0]
+        assert step.n_cells > 6000 and {"mean_curvature", "displacement"} <= set(step.point_data.keys())
+    listed = {f"s/s_{k:06d}.vtp" for k in range(len(reader.time_values))}
+    on_disk = {str(p.relative_to(tmp_path)) for p in (tmp_path / "s").iterdir()}
+    assert on_disk == listed  # no temporary or unlisted step files
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ball.vtp", "s", "s.pvd"]
+
+
+# --- batch ---------------------------------------------------------------------------------------------------
+
+
+def _scenario(folder: Path, text: str, name: str = "scenario.toml") -> Path:
+    path = folder / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ('name = "../../evil"\n[input]\nexample = "rock"\n[[stages]]\nstage = "curvature"\n',
+         r"name: must be a plain name"),
+        ('[input]\nexample = "rock"\nsubdivisions = -3\n[[stages]]\nstage = "curvature"\n',
+         r"\[input\] example 'rock': subdivisions must be >= 0"),
+        ('[input]\nexample = "rock"\nsubdivisions = 30\n[[stages]]\nstage = "curvature"\n',
+         r"subdivisions must be <= 8"),
+        ('[input]\nexample = "rock"\n[[stages]]\nstage = "hydraulic"\nemitter = "0,0,2,0,0,-1,0.3,200"\n[sweep]\n'
+         '"hydraulic.emitter" = ["0,0,2,0,0,-1,0.3,200", "0,0,2"]\n', r"emitter = '0,0,2'.*8 or 9 numbers"),
+        ('[input]\nexample = "rock"\n[[stages]]\nstage = "weather"\n[sweep]\n'
+         + "".join(f'"weather.power" = [{", ".join(str(1.0 + k) for k in range(40))}]\n'.replace("power", p)
+                   for p in ("power", "step_divisor", "min_edge_ratio"))
+         + '"seed" = [' + ", ".join(str(k) for k in range(60)) + "]\n",
+         r"40 x 40 x 40 x 60 = 3840000 jobs, more than the limit of 100000"),
+    ],
+    ids=["path escape", "negative subdivisions", "huge subdivisions", "late emitter", "huge sweep"],
+)
+def test_bad_batch_fails_before_any_job_runs(tmp_path, text, message):
+    path = _scenario(tmp_path, text)
+    start = time.perf_counter()
+    with pytest.raises(ScenarioError, match=message):
+        run_batch(path, tmp_path / "out", serial=True, progress=False)
+    assert time.perf_counter() - start < 60  # validated in O(size), long before any job
+    assert not (tmp_path / "out").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scenario.toml"]
+
+
+def test_a_folder_holds_one_scenario(tmp_path):
+    pv.Sphere().save(tmp_path / "ball.vtp")
+    first = _scenario(tmp_path, '[input]\nfile = "ball.vtp"\n[[stages]]\nstage = "curvature"\n', "a.toml")
+    second = _scenario(tmp_path, '[input]\nfile = "ball.vtp"\n[[stages]]\nstage = "curvature"\n'
+                                 'normalization = "shifted"\n', "b.toml")
+    run_batch(first, tmp_path / "out", serial=True, progress=False)
+    before = _files(tmp_path / "out")
+    with pytest.raises(ScenarioError, match="holds the results of another scenario"):
+        run_batch(second, tmp_path / "out", serial=True, progress=False)
+    assert _files(tmp_path / "out") == before
+    # the same scenario, re-laid out with a comment, resumes
+    _scenario(tmp_path, "# again\n" + first.read_text(), "a.toml")
+    assert run_batch(first, tmp_path / "out", serial=True, progress=False).skipped == 1
