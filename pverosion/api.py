@@ -160,8 +160,9 @@ def materials_from_volume(
         Material boundaries; material k is where the value exceeds k of them.
     array : str, optional
         Point array of an image volume.
-    method : {"complete", "simplified"}, default: "complete"
-        C-BSP (exact partition by clipping) or S-BSP (faster, coarser).
+    method : {"complete", "simplified", "fitted"}, default: "complete"
+        C-BSP (exact partition by clipping), S-BSP (faster, coarser) or a
+        tree fitted to the voxels (exact at voxel centres, far smaller).
     seed : int, default: 0
         Face insertion order; the same seed gives the same tree.
     hardness : sequence of float, optional

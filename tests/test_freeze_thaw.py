@@ -223,3 +223,75 @@ def test_bad_parameters_raise(kwargs, match):
 def test_bad_path_count_raises(cone_graph):
     with pytest.raises(ValueError, match="paths"):
         FreezeThawSimulation(cone_graph).run(-3)
+
+
+# --- independence from the seed's label and from the triangulation ------------------------------------------
+
+
+def _removed_sets(graph, seeds, paths):
+    out = []
+    for seed in seeds:
+        sim = FreezeThawSimulation(graph, seed=seed)
+        sim.run(paths)
+        out.append(frozenset(np.flatnonzero(sim.state == AIR).tolist()))
+    return out
+
+
+@pytest.fixture(scope="module")
+def hill_cone_points():
+    from pverosion.filters.shards import pattern_seeds
+    from pverosion.shard_scenes import hill_cone
+
+    cone = hill_cone()
+    points, faces = polydata_triangles(cone)
+    return cone, pattern_seeds(points, faces, cells=1000, seed=0)
+
+
+def test_twenty_seeds_give_twenty_independent_runs(hill_cone_points):
+    # a seed derivation by offset (state = seed * the SplitMix64 increment) made seed k's run seed 0's shifted by
+    # k draws: seeds 0 and 2, 1 and 3, 4 and 10 removed the same cells
+    cone, seeds = hill_cone_points
+    graph = build_shards(seeds, *polydata_triangles(cone))
+    removed = _removed_sets(graph, range(20), 20000)
+    assert min(len(r) for r in removed) > 20
+    for i in range(20):
+        for j in range(i):
+            jaccard = len(removed[i] & removed[j]) / len(removed[i] | removed[j])
+            assert jaccard < 0.9, (i, j, jaccard)
+
+
+def test_runs_do_not_depend_on_the_triangulation(hill_cone_points):
+    cone, seeds = hill_cone_points
+    fine = cone.subdivide(3, "linear")
+    assert (cone.n_cells, fine.n_cells) == (94, 6016)
+    coarse_graph = build_shards(seeds, *polydata_triangles(cone))
+    fine_graph = build_shards(seeds, *polydata_triangles(fine))
+    # the links are the cells' faces and surface patches, whatever the triangles: the same areas and normals
+    assert coarse_graph.n_links == fine_graph.n_links
+    for g in (coarse_graph, fine_graph):
+        assert np.array_equal(np.diff(g.surface_start) > 0, g.exterior)
+    assert np.diff(fine_graph.surface_start).sum() > 3 * np.diff(coarse_graph.surface_start).sum()
+    # (up to the float32 rounding of the points VTK inserts)
+    scale = coarse_graph.mean_area
+    np.testing.assert_allclose(np.sort(fine_graph.link_area), np.sort(coarse_graph.link_area), rtol=1e-6,
+                               atol=1e-5 * scale)
+    assert fine_graph.mean_area == pytest.approx(coarse_graph.mean_area, rel=1e-6)
+    counts = [np.mean([len(r) for r in _removed_sets(g, range(10), 20000)]) for g in (coarse_graph, fine_graph)]
+    assert counts[0] > 20
+    assert abs(counts[1] - counts[0]) < 0.15 * counts[0]
+
+
+def test_runs_do_not_depend_on_units(hill_cone_points):
+    cone, seeds = hill_cone_points
+    points, faces = polydata_triangles(cone)
+    graph = build_shards(seeds, points, faces)
+    base = _removed_sets(graph, range(5), 20000)
+    for scale in (1e-3, 1e3):
+        scaled = build_shards(seeds * scale, points * scale, faces)
+        assert scaled.n_links == graph.n_links
+        np.testing.assert_allclose(scaled.link_area, graph.link_area * scale**2, rtol=1e-9,
+                                   atol=1e-5 * graph.mean_area * scale**2)  # slivers: rounding
+        removed = _removed_sets(scaled, range(5), 20000)
+        # the same runs up to rounding: almost always the very same cells
+        same = [len(a & b) / len(a | b) for a, b in zip(base, removed)]
+        assert np.mean(same) > 0.9, same

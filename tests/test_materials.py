@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from conftest import DATA
 
-from pverosion.kernels.bsp import BSPNode, BSPTree, build_from_triangles
+from pverosion.kernels.bsp import LATTICE_DIRECTIONS, BSPNode, BSPTree, build_from_labels, build_from_triangles
 from pverosion.kernels.materials import (
     BSPMaterials,
     Gradual,
@@ -138,6 +138,73 @@ def test_build_from_triangles_reproduces_a_cube():
         assert np.array_equal(tree.locate(points)[0] == 1, inside)
 
 
+def _centres(shape, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)):
+    grid = np.stack(np.meshgrid(*[np.arange(n) for n in shape], indexing="ij"), -1).reshape(-1, 3)
+    return np.asarray(origin) + grid * np.asarray(spacing)
+
+
+def test_fitted_tree_splits_a_half_space_with_one_lattice_plane():
+    i, j, k = np.indices((20, 16, 12))
+    origin, spacing = np.array([-3.0, 2.0, 0.5]), np.array([0.5, 2.0, 1.5])
+    for u in LATTICE_DIRECTIONS:
+        labels = (u[0] * i + u[1] * j + u[2] * k > 4).astype(np.int64)
+        tree = build_from_labels(labels, origin=origin, spacing=spacing)
+        assert tree.n_nodes == 3 and tree.height == 1
+        normal = tree.params[0, :3]
+        assert np.linalg.norm(normal) == pytest.approx(1.0)
+        np.testing.assert_allclose(normal, (u / spacing) / np.linalg.norm(u / spacing), atol=1e-12)
+        material, distance = tree.locate(_centres(labels.shape, origin, spacing))
+        assert np.array_equal(material, labels.ravel())
+        # the plane lies half a lattice step from the nearest centres, in world units
+        assert distance.min() == pytest.approx(0.5 / np.linalg.norm(u / spacing), rel=1e-9)
+
+
+def test_fitted_tree_of_a_box_has_six_planes():
+    labels = np.zeros((12, 10, 9), np.int64)
+    labels[2:9, 3:7, 1:8] = 2
+    tree = build_from_labels(labels)
+    assert (tree.leaf < 0).sum() == 6
+    assert np.array_equal(tree.locate(_centres(labels.shape))[0], labels.ravel())
+
+
+def test_fitted_tree_is_exact_and_smaller_than_the_volume_on_smooth_data():
+    # four nested materials of a smooth 8-bit volume: tree bytes under the volume's, every voxel right (the
+    # tree grows with the area of the material boundaries, the volume with its cube: finer volumes gain more)
+    x, y, z = np.meshgrid(*[np.linspace(-1, 1, n) for n in (64, 57, 51)], indexing="ij")
+    values = np.clip(255 * (1.2 - np.sqrt(x**2 + 1.3 * y**2 + 0.8 * z**2) + 0.1 * np.sin(3 * x)), 0, 255)
+    values = values.astype(np.uint8)
+    thresholds = (60, 120, 200)
+    reference = (values[..., None] > np.array(thresholds)).sum(axis=-1).ravel()
+    spacing = (0.7, 0.7, 1.1)
+    fitted = bsp_from_volume(values, thresholds, spacing=spacing, method="fitted")
+    assert np.array_equal(fitted.sample(_centres(values.shape, spacing=spacing)).material_id, reference)
+    assert fitted.stats.tree_bytes < values.nbytes
+    assert fitted.stats.tree_bytes == 24 * fitted.stats.nodes
+    assert fitted.stats.inserted_faces == (fitted.tree.leaf < 0).sum() and fitted.stats.extracted_faces == 0
+    complete = bsp_from_volume(values, thresholds, spacing=spacing, method="complete")
+    assert fitted.stats.nodes * 10 < complete.stats.nodes
+    agreement = np.mean(complete.sample(_centres(values.shape, spacing=spacing)).material_id == reference)
+    assert agreement < 1.0  # the inserted isosurfaces miss some voxel centres the fitted tree gets right
+    # the same input gives the same tree
+    again = bsp_from_volume(values, thresholds, spacing=spacing, method="fitted")
+    assert np.array_equal(again.tree.params, fitted.tree.params) and np.array_equal(again.tree.leaf, fitted.tree.leaf)
+
+
+def test_fitted_tree_of_tilted_strata_is_a_few_percent_of_the_volume():
+    i, j, k = np.indices((64, 48, 40))
+    strata = (40 * np.floor((k + 0.3 * i) / 8) % 255).astype(np.uint8)  # layers 8 voxels thick, dipping along x
+    field = bsp_from_volume(strata, (30, 90), method="fitted")
+    reference = (strata[..., None] > np.array([30, 90])).sum(axis=-1).ravel()
+    assert np.array_equal(field.sample(_centres(strata.shape)).material_id, reference)
+    assert field.stats.tree_bytes < 0.05 * strata.nbytes
+
+
+@pytest.mark.parametrize("labels", [np.zeros((3, 3)), -np.ones((2, 2, 2), int), np.zeros((2, 2, 2))])
+def test_fitted_tree_rejects_bad_labels(labels):
+    with pytest.raises(ValueError, match="labels"):
+        build_from_labels(labels)
+
+
 @pytest.fixture(scope="module")
 def head():
     raw = DATA / "HeadMRVolume.raw"
@@ -161,6 +228,10 @@ def test_head_volume_bsp_agrees_with_thresholded_voxels(head):
     again = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="complete", seed=3)
     first = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="complete", seed=3)
     assert np.array_equal(again.tree.params, first.tree.params) and np.array_equal(again.tree.leaf, first.tree.leaf)
+    fitted = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="fitted")
+    assert np.array_equal(fitted.sample(centres).material_id, reference)
+    complete = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="complete", seed=3)
+    assert fitted.stats.tree_bytes * 20 < complete.stats.tree_bytes
 
 
 def test_bad_input_is_named():

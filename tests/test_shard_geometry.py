@@ -110,20 +110,35 @@ def test_link_faces_have_the_graph_area_centroid_and_normal(case):
     assert np.all(np.diff(links.triangle_link) >= 0)
     assert np.array_equal(np.diff(links.link_start), np.bincount(links.triangle_link, minlength=graph.n_links))
     assert np.all(np.diff(links.link_start) > 0), "every link has triangles"
+    outside = graph.exterior[links.triangle_link]
+    p = links.points[links.triangles]
+    cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    # interior links are wound along link_normal, the pieces of exterior ones along the mesh's outward normal
     area = _signed_areas(links.points, links.triangles, graph.link_normal[links.triangle_link])
-    # wound along link_normal: no triangle is flipped beyond rounding
-    assert np.all(area >= -1e-9 * graph.link_area[links.triangle_link])
+    assert np.all(area[~outside] >= -1e-9 * graph.link_area[links.triangle_link[~outside]])
+    centre = p.mean(axis=1)
+    nearest = mesh.find_closest_cell(centre[outside])
+    facing = np.einsum("ij,ij->i", cross[outside], np.asarray(mesh.face_normals)[nearest])
+    assert np.all(facing >= -1e-9 * graph.link_area[links.triangle_link[outside]])
+    area[outside] = 0.5 * np.linalg.norm(cross[outside], axis=1)
     per_link = np.bincount(links.triangle_link, area, minlength=graph.n_links)
     scale = mesh.length**2
     np.testing.assert_allclose(per_link, graph.link_area, rtol=1e-9, atol=1e-15 * scale)
-    centre = links.points[links.triangles].mean(axis=1)
     moment = np.stack([np.bincount(links.triangle_link, area * centre[:, k], minlength=graph.n_links)
                        for k in range(3)], axis=1)
     np.testing.assert_allclose(moment / per_link[:, None], graph.link_centroid, rtol=0, atol=1e-9 * mesh.length)
-    # the faces lie in their planes: interior links on the bisector, exterior ones on their mesh triangle
-    offset = np.einsum("ij,ij->i", links.points[links.triangles[:, 0]] - graph.link_centroid[links.triangle_link],
-                       graph.link_normal[links.triangle_link])
+    # an exterior link's area vector points along its normal
+    vector = np.stack([np.bincount(links.triangle_link[outside], 0.5 * cross[outside, k], minlength=graph.n_links)
+                       for k in range(3)], axis=1)[graph.exterior]
+    np.testing.assert_allclose(vector / np.linalg.norm(vector, axis=1)[:, None], graph.link_normal[graph.exterior],
+                               atol=1e-9)
+    # the faces lie in their planes: interior links on the bisector, exterior ones on the mesh surface
+    inner = links.triangles[~outside, 0]
+    offset = np.einsum("ij,ij->i", links.points[inner] - graph.link_centroid[links.triangle_link[~outside]],
+                       graph.link_normal[links.triangle_link[~outside]])
     assert np.abs(offset).max() < 1e-9 * mesh.length
+    on_surface = pv.PolyData(links.points[np.unique(links.triangles[outside])]).compute_implicit_distance(mesh)
+    assert np.abs(on_surface["implicit_distance"]).max() < 1e-9 * mesh.length
 
 
 def test_torus_faces_cut_into_non_convex_pieces_still_match():
@@ -137,10 +152,11 @@ def test_torus_faces_cut_into_non_convex_pieces_still_match():
         xy = _plane_coordinates(links.points[used], graph.link_normal[k])
         non_convex += ConvexHull(xy).volume > (1 + 1e-6) * graph.link_area[k]
     assert non_convex >= 3
-    area = _signed_areas(links.points, links.triangles, graph.link_normal[links.triangle_link])
+    inner = ~graph.exterior[links.triangle_link]
+    area = _signed_areas(links.points, links.triangles[inner], graph.link_normal[links.triangle_link[inner]])
     assert area.min() >= -1e-12
-    np.testing.assert_allclose(np.bincount(links.triangle_link, area, minlength=graph.n_links), graph.link_area,
-                               rtol=1e-9)
+    per_link = np.bincount(links.triangle_link[inner], area, minlength=graph.n_links)
+    np.testing.assert_allclose(per_link[~graph.exterior], graph.link_area[~graph.exterior], rtol=1e-9)
 
 
 @pytest.mark.parametrize("axis", [0, 2])
@@ -197,7 +213,8 @@ def test_cells_that_overflow_their_slots_are_redone_with_more_room(monkeypatch):
     assert len(tight.triangles) == len(roomy.triangles) and len(tight.points) == len(roomy.points)
     assert np.array_equal(tight.link_start, roomy.link_start)
     for links in (roomy, tight):
-        area = _signed_areas(links.points, links.triangles, graph.link_normal[links.triangle_link])
+        p = links.points[links.triangles]
+        area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
         np.testing.assert_allclose(np.bincount(links.triangle_link, area, minlength=graph.n_links), graph.link_area,
                                    rtol=1e-9)
 

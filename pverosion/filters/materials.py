@@ -64,7 +64,8 @@ class MaterialsFromVolume(ErosionFilter):
     PARAMS = (
         Param("thresholds", "", "Material boundaries, comma separated (required), e.g. 40,100,160.", numbers=0),
         Param("array", "", "Input point array to threshold (default: the active scalars)."),
-        Param("method", "complete", "complete (C-BSP, clip straddling faces) or simplified (S-BSP, face centre).",
+        Param("method", "complete", "complete (C-BSP, clip straddling faces), simplified (S-BSP, face centre) or "
+              "fitted (planes chosen to fit the voxels' materials: exact at voxel centres, far smaller).",
               choices=BSP_METHODS),
         Param("seed", 0, "Seed of the face insertion order.", minimum=0),
         Param("hardness", "", "Hardness per material, comma separated (default 1, 2, ..., m+1).", numbers=0),

@@ -12,6 +12,21 @@ descending the tree and skipped when it lies in a plane already on its path.
 each piece down its side, so every leaf is split only by faces that reach
 into it; ``method="simplified"`` (S-BSP) sends the whole face down the side
 of its centre.
+
+Inserting every marching-cubes face makes trees far larger than the volume
+(on smooth data nearly every face is inserted, and a face only approximates
+where the voxel centres change material). :func:`build_from_labels`
+(``method="fitted"``) grows the tree from the labelled voxels themselves
+instead. Its candidate splitters stand for runs of nearly coplanar boundary
+faces: the planes half-way between lattice points, ``u . i = s + 1/2`` for
+a lattice direction ``u`` (the three axes, six face and four body
+diagonals) and an integer ``s``. Each leaf is split by the candidate that
+leaves the purest children (least Gini impurity of the labels on each side,
+a cost found for every plane of a direction by one sweep over a histogram),
+until every leaf holds one label. The tree then gives every voxel centre its
+label exactly; its size grows with the area of the material boundaries in
+voxels (about 3x the bytes of the 48 x 62 x 42 MR head, whose boundaries
+are noisy; a few percent of a volume of tilted strata).
 """
 
 from __future__ import annotations
@@ -31,9 +46,10 @@ from pverosion.kernels.surfaces import (
     surface_value,
 )
 
-__all__ = ["BSP_METHODS", "BSPNode", "BSPStats", "BSPTree", "build_from_triangles"]
+__all__ = ["BSP_METHODS", "BSPNode", "BSPStats", "BSPTree", "LATTICE_DIRECTIONS", "build_from_labels",
+           "build_from_triangles"]
 
-BSP_METHODS = ("complete", "simplified")
+BSP_METHODS = ("complete", "simplified", "fitted")
 """Accepted values of the ``method`` option of the automated build."""
 
 NODE_BYTES = 24
@@ -457,8 +473,8 @@ def build_from_triangles(
         Faces that created at least one node (the others lay in planes already
         on their path).
     """
-    if method not in BSP_METHODS:
-        raise ValueError(f"method must be one of {BSP_METHODS}; got {method!r}")
+    if method not in BSP_METHODS[:2]:
+        raise ValueError(f"method must be one of {BSP_METHODS[:2]}; got {method!r}")
     tri = np.ascontiguousarray(triangles, dtype=np.float64)
     if tri.ndim != 3 or tri.shape[1:] != (3, 3) or len(tri) == 0:
         raise ValueError(f"triangles must have shape (T, 3, 3) with T > 0; got {tri.shape}")
@@ -471,3 +487,147 @@ def build_from_triangles(
     params[:, :4] = plane
     tree = BSPTree(np.full(len(plane), PLANE), params, links[:, 0], links[:, 1], links[:, 2])
     return tree.preordered(), int(inserted)
+
+
+# -- fitted build: lattice planes chosen by the purity of the voxel labels -------------------------------
+
+LATTICE_DIRECTIONS = np.array([(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, -1, 0), (1, 0, 1), (1, 0, -1),
+                               (0, 1, 1), (0, 1, -1), (1, 1, 1), (1, 1, -1), (1, -1, 1), (-1, 1, 1)], np.int64)
+"""Normals, in voxel index space, of the planes :func:`build_from_labels` splits with (thirteen directions)."""
+
+
+@njit(cache=True)
+def _fit(keys, labels, n_class):
+    """Grow a tree over lattice points with keys ``keys[p, u] = u . i_p``, splitting until each leaf is pure.
+
+    Returns per node: split direction and key (the plane ``u . i = key + 1/2``, lower keys on the negative
+    side), children (-1 for leaves) and the leaf label (-1 for inner nodes).
+    """
+    n, n_dir = keys.shape
+    index = np.arange(n)
+    scratch = np.empty(n, np.int64)
+    capacity = 2 * n + 1
+    direction = np.full(capacity, -1, np.int64)
+    key = np.zeros(capacity, np.int64)
+    children = np.full((capacity, 2), -1, np.int64)
+    leaf = np.full(capacity, -1, np.int64)
+    stack = np.empty((capacity, 3), np.int64)  # (first, end, node)
+    stack[0, 0], stack[0, 1], stack[0, 2] = 0, n, 0
+    top = 1
+    n_nodes = 1
+    counts = np.zeros(n_class, np.int64)
+    left = np.zeros(n_class, np.int64)
+    while top > 0:
+        top -= 1
+        a, b, node = stack[top, 0], stack[top, 1], stack[top, 2]
+        m = b - a
+        counts[:] = 0
+        for q in range(a, b):
+            counts[labels[index[q]]] += 1
+        majority = np.argmax(counts)
+        if counts[majority] == m:
+            leaf[node] = majority
+            continue
+        best = np.inf
+        best_dir = -1
+        best_key = 0
+        for u in range(n_dir):
+            lo = keys[index[a], u]
+            hi = lo
+            for q in range(a + 1, b):
+                k = keys[index[q], u]
+                lo = min(lo, k)
+                hi = max(hi, k)
+            if hi == lo:
+                continue
+            hist = np.zeros((hi - lo + 1, n_class), np.int64)
+            for q in range(a, b):
+                hist[keys[index[q], u] - lo, labels[index[q]]] += 1
+            left[:] = 0
+            n_left = 0
+            for s in range(hi - lo):
+                for c in range(n_class):
+                    left[c] += hist[s, c]
+                    n_left += hist[s, c]
+                n_right = m - n_left
+                if n_left == 0 or n_right == 0:
+                    continue
+                sq_left = 0.0
+                sq_right = 0.0
+                for c in range(n_class):
+                    sq_left += float(left[c]) * left[c]
+                    sq_right += float(counts[c] - left[c]) * (counts[c] - left[c])
+                impurity = (n_left - sq_left / n_left) + (n_right - sq_right / n_right)  # weighted Gini
+                if impurity < best:
+                    best = impurity
+                    best_dir = u
+                    best_key = lo + s
+        # split: keys <= best_key to the negative child
+        i = a
+        k = 0
+        for q in range(a, b):
+            p = index[q]
+            if keys[p, best_dir] <= best_key:
+                index[i] = p
+                i += 1
+            else:
+                scratch[k] = p
+                k += 1
+        index[i:b] = scratch[:k]
+        direction[node] = best_dir
+        key[node] = best_key
+        children[node, 0] = n_nodes
+        children[node, 1] = n_nodes + 1
+        stack[top, 0], stack[top, 1], stack[top, 2] = a, i, n_nodes
+        stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2] = i, b, n_nodes + 1
+        top += 2
+        n_nodes += 2
+    return direction[:n_nodes].copy(), key[:n_nodes].copy(), children[:n_nodes].copy(), leaf[:n_nodes].copy()
+
+
+def build_from_labels(labels: np.ndarray, *, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)) -> BSPTree:
+    """Grow a plane BSP tree that gives every voxel centre of ``labels`` its label.
+
+    Parameters
+    ----------
+    labels : numpy.ndarray, shape (nx, ny, nz), int
+        Material id (>= 0) of every voxel, indexed ``[i, j, k]`` along x, y, z.
+    origin, spacing : array_like, shape (3,)
+        World position of voxel (0, 0, 0) and the voxel size.
+
+    Returns
+    -------
+    BSPTree
+        Planes between voxel centres along :data:`LATTICE_DIRECTIONS`
+        (unit normals, so the location distance is in world units); the
+        material of voxel ``(i, j, k)`` is found at
+        ``origin + (i, j, k) * spacing``. The tree is the same for any
+        thread count: it is grown serially, ties going to the first
+        direction and the lowest plane.
+
+    Raises
+    ------
+    ValueError
+        ``labels`` not a 3-D array of non-negative integers, or bad
+        ``origin``/``spacing``.
+    """
+    lab = np.asarray(labels)
+    if lab.ndim != 3 or lab.size == 0 or not np.issubdtype(lab.dtype, np.integer) or lab.min() < 0:
+        raise ValueError(f"labels must be a non-empty 3-D array of integers >= 0; got {lab.dtype} {lab.shape}")
+    origin = np.asarray(origin, dtype=np.float64).reshape(3)
+    spacing = np.asarray(spacing, dtype=np.float64).reshape(3)
+    if not (np.isfinite(origin).all() and np.isfinite(spacing).all() and (spacing > 0).all()):
+        raise ValueError(f"origin must be finite and spacing > 0; got {origin.tolist()}, {spacing.tolist()}")
+    grid = np.stack(np.meshgrid(*[np.arange(n) for n in lab.shape], indexing="ij"), axis=-1).reshape(-1, 3)
+    keys = np.ascontiguousarray(grid @ LATTICE_DIRECTIONS.T)
+    direction, key, children, leaf = _fit(keys, np.ascontiguousarray(lab.ravel(), dtype=np.int64),
+                                          int(lab.max()) + 1)
+    inner = leaf < 0
+    normal = LATTICE_DIRECTIONS[np.maximum(direction, 0)] / spacing  # u . (x - origin) / spacing = key + 1/2
+    offset = -(normal @ origin) - (key + 0.5)
+    scale = np.linalg.norm(normal, axis=1)
+    params = np.zeros((len(leaf), N_PARAMS))
+    params[inner, :3] = normal[inner] / scale[inner, None]
+    params[inner, 3] = offset[inner] / scale[inner]
+    tree = BSPTree(np.full(len(leaf), PLANE), params, children[:, 0], children[:, 1], leaf)
+    return tree.preordered()

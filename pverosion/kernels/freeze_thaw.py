@@ -26,8 +26,10 @@ exterior, one that does not is an enclosed air pocket and stays interior
 
 Infiltration samples an exterior link by area with a Fenwick tree and
 accepts it with probability ``max(-n . d, 0)``, so a path costs the same
-for a thousand cells or a million. Random numbers come from SplitMix64, so
-the same seed gives the same run bit for bit on any machine.
+for a thousand cells or a million. Random numbers come from SplitMix64
+started from the seed's hash (:func:`~pverosion.kernels.random_streams.stream_state`),
+so the same seed gives the same run bit for bit on any machine and different
+seeds give independent runs.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ from numba import njit
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from pverosion.kernels.random_streams import stream_state
 from pverosion.kernels.shards import ShardGraph
 
 __all__ = ["AIR", "CORE", "SOLID", "FreezeThawParameters", "FreezeThawSimulation", "PathRecord"]
@@ -164,7 +167,8 @@ class FreezeThawSimulation:
         The resistance field rho at the link centroids, or a function of
         points (n, 3) -> (n,); values are clipped to [0, 1]. Default 0.
     seed : int
-        Seed of the SplitMix64 generator.
+        Seed (>= 0) of the water paths; hashed, so different seeds give
+        independent runs.
 
     Attributes
     ----------
@@ -202,7 +206,7 @@ class FreezeThawSimulation:
                                p.break_probability, p.complete_absorption, math.cos(math.radians(p.spread))])
         self._direction = np.asarray(p.water_direction, float) / np.linalg.norm(p.water_direction)
         self._gravity = np.asarray(p.gravity, float) / np.linalg.norm(p.gravity)
-        self._rng = np.array([_mix(seed)], np.uint64)
+        self._rng = np.array([stream_state(seed, "freeze_thaw")], np.uint64)
         # every link of every cell, exterior ones included
         cells = graph.link_cells
         inner = cells[:, 1] >= 0
@@ -359,12 +363,6 @@ def _resistance(resistance, centroids: np.ndarray) -> np.ndarray:
     if not np.isfinite(values).all():
         raise ValueError("the resistance field has NaN or infinite values at some link centroids")
     return np.clip(values, 0.0, 1.0).astype(np.float64)
-
-
-def _mix(seed: int) -> np.uint64:
-    if int(seed) != seed or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer; got {seed!r}")
-    return np.uint64(int(seed) * 0x9E3779B97F4A7C15 % 2**64)
 
 
 # --- random numbers ----------------------------------------------------------------------------------------
@@ -533,7 +531,7 @@ def _detach(link, link_cells, cell_start, cell_links, life, state, component, co
     """
     a, b = link_cells[link, 0], link_cells[link, 1]
     stamp[0] += 2
-    sa, sb = stamp[0], stamp[0] + 1
+    sa, sb = stamp[0] - 1, stamp[0]  # stamps are never reused: a later search takes stamp[0] + 1
     cell_mark[a] = sa
     cell_mark[b] = sb
     queue_a[0] = a

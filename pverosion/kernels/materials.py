@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import map_coordinates
 
-from pverosion.kernels.bsp import NODE_BYTES, BSPStats, BSPTree, build_from_triangles
+from pverosion.kernels.bsp import BSP_METHODS, NODE_BYTES, BSPStats, BSPTree, build_from_labels, build_from_triangles
 from pverosion.kernels.surfaces import ImplicitSurface
 
 __all__ = [
@@ -277,10 +277,16 @@ def bsp_from_volume(
     """Build a BSP material field from volume data (thesis §11.5, Algorithm 1).
 
     Material ``k`` is where the value exceeds exactly ``k`` of the sorted
-    thresholds. For each threshold the isosurface is extracted by marching
-    cubes (on the volume padded by one layer below every threshold, so the
-    surfaces are closed), oriented towards lower values, and its faces are
-    inserted in a seeded Fisher–Yates order.
+    thresholds. C-BSP and S-BSP: for each threshold the isosurface is
+    extracted by marching cubes (on the volume padded by one layer below
+    every threshold, so the surfaces are closed), oriented towards lower
+    values, and its faces are inserted in a seeded Fisher–Yates order
+    (NumPy's ``default_rng(seed)``, whose seeds give independent orders).
+    ``"fitted"``: the tree is grown from the voxels' materials by
+    :func:`~pverosion.kernels.bsp.build_from_labels`, splitting with the
+    lattice plane that leaves the purest sides; it gives every voxel centre
+    its material exactly and is tens of times smaller than C-BSP on smooth
+    data.
 
     Parameters
     ----------
@@ -290,10 +296,10 @@ def bsp_from_volume(
         Material boundaries (distinct).
     origin, spacing : array_like, shape (3,)
         World position of voxel (0, 0, 0) and the voxel size.
-    method : {"complete", "simplified"}
-        C-BSP or S-BSP.
+    method : {"complete", "simplified", "fitted"}
+        C-BSP, S-BSP or the fitted tree.
     seed : int
-        Insertion order seed.
+        Insertion order seed (C-BSP and S-BSP; the fitted tree has no random part).
     hardness : array_like, shape (len(thresholds) + 1,), optional
         Hardness of each material; by default ``1, 2, ..., m + 1``.
     gradual : Gradual, optional
@@ -301,7 +307,9 @@ def bsp_from_volume(
     Returns
     -------
     BSPMaterials
-        With ``stats`` (:class:`~pverosion.kernels.bsp.BSPStats`).
+        With ``stats`` (:class:`~pverosion.kernels.bsp.BSPStats`; for the
+        fitted tree, no faces are extracted and ``inserted_faces`` counts its
+        splitting planes).
     """
     from skimage.measure import marching_cubes
 
@@ -315,8 +323,17 @@ def bsp_from_volume(
     lo, hi = float(vol.min()), float(vol.max())
     if levels[0] <= lo or levels[-1] >= hi:
         raise ValueError(f"thresholds must lie strictly inside the value range ({lo}, {hi}); got {levels.tolist()}")
+    if method not in BSP_METHODS:
+        raise ValueError(f"method must be one of {BSP_METHODS}; got {method!r}")
     origin = np.asarray(origin, dtype=np.float64).reshape(3)
     spacing = np.asarray(spacing, dtype=np.float64).reshape(3)
+    table = np.arange(1.0, levels.size + 2.0) if hardness is None else hardness
+    if method == "fitted":
+        tree = build_from_labels((vol[..., None] > levels).sum(axis=-1), origin=origin, spacing=spacing)
+        stats = BSPStats(method=method, extracted_faces=0, inserted_faces=int((tree.leaf < 0).sum()),
+                         nodes=tree.n_nodes, height=tree.height, tree_bytes=NODE_BYTES * tree.n_nodes,
+                         volume_bytes=int(raw.nbytes), seed=int(seed))
+        return BSPMaterials(tree, table, gradual=gradual, stats=stats)
     padded = np.pad(vol, 1, constant_values=lo - 1.0)
     triangles, inside = [], []
     for k, level in enumerate(levels, start=1):
@@ -330,5 +347,4 @@ def bsp_from_volume(
     stats = BSPStats(method=method, extracted_faces=len(tri), inserted_faces=inserted, nodes=tree.n_nodes,
                      height=tree.height, tree_bytes=NODE_BYTES * tree.n_nodes, volume_bytes=int(raw.nbytes),
                      seed=int(seed))
-    table = np.arange(1.0, levels.size + 2.0) if hardness is None else hardness
     return BSPMaterials(tree, table, gradual=gradual, stats=stats)

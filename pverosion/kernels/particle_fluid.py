@@ -67,8 +67,9 @@ Method
 - **Determinism.** Parallel loops write only their own particle's entries,
   sorts are counting sorts (in fixed chunks when parallel), ties between
   faces go to the lower face index, and random numbers come from
-  SplitMix64, so the same inputs and seed give bit-identical states for any
-  number of threads.
+  SplitMix64 started from the seed's hash (:func:`~pverosion.kernels.random_streams.stream_state`),
+  so the same inputs and seed give bit-identical states for any number of
+  threads, and different seeds give independent streams.
 """
 
 from __future__ import annotations
@@ -82,6 +83,7 @@ from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range
+from pverosion.kernels.random_streams import stream_state
 from pverosion.kernels.validation import as_triangle_mesh
 
 __all__ = ["DRAIN_KINDS", "PHASES", "Drain", "Emitter", "FluidParameters", "FluidState", "ParticleFluid"]
@@ -1663,7 +1665,8 @@ class ParticleFluid:
         sides are solid walls (frictionless) that keep particle centres ``r``
         inside.
     seed : int, default: 0
-        Seed of the SplitMix64 generator of the emitters.
+        Seed (>= 0) of the emitters' SplitMix64 generator, hashed so that
+        different seeds give independent streams.
 
     Attributes
     ----------
@@ -1733,7 +1736,7 @@ class ParticleFluid:
         self._kern = np.array([params.radius, h, self._k6, 45.0 / (math.pi * h**6), 1.0 / rho0,
                                params.relaxation * grad2, kw, 1.0 / _poly6((TENSILE_DISTANCE * h) ** 2, h),
                                params.tensile / grad2, JACOBI_WEIGHT])
-        self._rng = np.array([int(seed) % (1 << 64)], np.uint64)
+        self._rng = np.array([stream_state(seed, "particle_fluid")], np.uint64)
         self._advance = np.zeros(len(emitters))
         self._next_id = 0
         self._capacity = 64

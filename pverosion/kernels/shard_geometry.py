@@ -4,8 +4,9 @@
 and normal of every link. This module rebuilds the link faces themselves as
 triangles, cell by cell, from the same construction:
 
-- an exterior link (the piece of mesh triangle ``t`` inside a cell) is the
-  triangle clipped to the cell's planes: a convex polygon, fanned;
+- an exterior link (a surface patch of a cell) is made of the pieces of its
+  mesh triangles inside the cell: each triangle clipped to the cell's
+  planes, a convex polygon, fanned;
 - an interior link is the Voronoi face between two cells, or, when the mesh
   cuts it, the part of it inside the mesh: its boundary is the face's edges
   where they run inside the mesh and the sections of the mesh triangles
@@ -815,9 +816,13 @@ def link_polygons(graph: ShardGraph, *, tolerance: float = 1e-9) -> LinkMesh:
     first, second = graph.link_cells[:, 0], graph.link_cells[:, 1]
     exterior = second < 0
     links = np.arange(n_links, dtype=np.int64)
-    # pass 1: every link from its first (lower-numbered) cell
-    label = np.where(exterior, -1 - graph.link_triangle, cell_seed[np.maximum(second, 0)])
-    wants = _wants(n_cells, first, label, links, np.zeros(n_links, bool))
+    # pass 1: every link from its first (lower-numbered) cell; an exterior link is its pieces of mesh triangles
+    inner = np.flatnonzero(~exterior)
+    per_link = np.diff(graph.surface_start)
+    outer = np.repeat(links, per_link)
+    cell = np.concatenate([first[inner], first[outer]])
+    label = np.concatenate([cell_seed[second[inner]], -1 - graph.surface_triangle])
+    wants = _wants(n_cells, cell, label, np.concatenate([inner, outer]), np.zeros(len(cell), bool))
     parts = []
     issues = 0
     threads = numba.get_num_threads()

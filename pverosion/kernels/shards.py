@@ -12,8 +12,8 @@ and dropped otherwise. A cell that the surface crosses is clipped exactly:
   the face plane's section of the mesh triangles, clipped to the face. Area,
   centroid and the cell's volume follow from the boundary segments alone
   (Green's and Gauss' theorems), so no polygon has to be rebuilt;
-- each mesh triangle keeps the part inside the cell (a convex clip): one
-  exterior link per (cell, triangle), as the surface faces of the paper.
+- each mesh triangle keeps the part inside the cell (a convex clip), a
+  surface piece.
 
 Links are neighbours in the links graph when their faces share an edge: two
 faces of one cell along a Voronoi edge that runs inside the mesh, a face
@@ -22,6 +22,15 @@ along a mesh edge, and the surface pieces of one triangle in two cells.
 Cells are computed in parallel batches with per-cell records, so the graph
 is the same for any thread count; the records are then numbered into links
 and the pairs resolved to link ids cell by cell.
+
+An exterior link is then one connected surface patch of a cell: the surface
+pieces of the cell joined across mesh edges are merged into one link, with
+their total area, their area-weighted centroid and the direction of their
+area vector as its normal. The links are thereby defined by the surface and
+the cells, not by the surface's triangles: subdividing the mesh (or
+retriangulating a flat or developable part of it) leaves the links, and the
+freeze–thaw physics on them, as they were, up to rounding and the order of
+the links.
 """
 
 from __future__ import annotations
@@ -31,6 +40,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit, prange
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from pverosion.kernels.mesh_query import _needle, overlap_grid, point_inside, segment_crossings, unit_normals
 from pverosion.kernels.topology import halfedge_twins
@@ -57,13 +68,18 @@ class ShardGraph:
         Seed of every cell (cells whose clipped volume is zero are already dropped).
     volume : (n_cells,) float64
     link_cells : (n_links, 2) int64
-        The two cells of an interior link; ``(cell, -1)`` for an exterior link.
-    link_triangle : (n_links,) int64
-        Mesh triangle of an exterior link, -1 for interior links.
+        The two cells of an interior link; ``(cell, -1)`` for an exterior link
+        (one connected surface patch of the cell).
+    surface_start, surface_triangle : (n_links + 1,), (n_pieces,) int64
+        CSR: the mesh triangles whose pieces inside the cell make up each
+        exterior link, ascending (none for interior links).
     link_area : (n_links,) float64
     link_centroid : (n_links, 3) float64
+        Area-weighted centroid (off the surface for a curved patch).
     link_normal : (n_links, 3) float64
-        Unit normal, from the first cell to the second (outward for exterior links).
+        Unit normal, from the first cell to the second (outward for exterior
+        links: the direction of the patch's area vector, zero if that vector
+        vanishes).
     cell_start, cell_links : int64 arrays
         Cells graph G_C in CSR form: the interior links of each cell.
     link_start, link_neighbours : int64 arrays
@@ -81,7 +97,8 @@ class ShardGraph:
     seeds: np.ndarray
     volume: np.ndarray
     link_cells: np.ndarray
-    link_triangle: np.ndarray
+    surface_start: np.ndarray
+    surface_triangle: np.ndarray
     link_area: np.ndarray
     link_centroid: np.ndarray
     link_normal: np.ndarray
@@ -862,6 +879,39 @@ def _cell_csr(first, second, n_cells):
     return start, cols
 
 
+def _surface_patches(link_cells: np.ndarray, ia: np.ndarray, ib: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Merge the surface pieces of each cell that are joined across mesh edges into one link per patch.
+
+    Parameters
+    ----------
+    link_cells : (m, 2) int64
+        Cells of the links before merging (``(cell, -1)`` for a surface piece).
+    ia, ib : (p,) int64
+        Neighbouring links (-1 for none).
+
+    Returns
+    -------
+    patch : (m,) int64
+        The merged link of every link, numbered in the order of the lowest link each holds (so interior
+        links, which come first and stay alone, keep their numbers).
+    lowest : (n,) int64
+        The lowest link of every merged link.
+    """
+    m = len(link_cells)
+    exterior = link_cells[:, 1] < 0
+    ok = (ia >= 0) & (ib >= 0)
+    a, b = ia[ok], ib[ok]
+    same = exterior[a] & exterior[b] & (link_cells[a, 0] == link_cells[b, 0])
+    joins = coo_matrix((np.ones(int(same.sum())), (a[same], b[same])), shape=(m, m))
+    _, label = connected_components(joins, directed=False)
+    lowest = np.full(label.max() + 1 if m else 0, m, np.int64)
+    np.minimum.at(lowest, label, np.arange(m))
+    order = np.argsort(lowest, kind="stable")
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return rank[label], lowest[order]
+
+
 def _assemble(seeds, volume, recs, vals, pairs, *, box) -> ShardGraph:
     """The graph from the cells' records (cell, label) with values (area, centroid, normal) and pairs."""
     n = len(seeds)
@@ -876,11 +926,28 @@ def _assemble(seeds, volume, recs, vals, pairs, *, box) -> ShardGraph:
     link_cells = np.stack([renumber[first], np.where(second >= 0, renumber[np.maximum(second, 0)], -1)], axis=1)
     n_cells = int(keep_cell.sum())
     ia, ib = _pair_links(pairs, start, labels, link_of)
-    link_start, link_neighbours = _symmetric_csr(ia, ib, len(first))
+    # one exterior link per connected surface patch of a cell
+    patch, lowest = _surface_patches(link_cells, ia, ib)
+    n_links = len(lowest)
+    area = np.bincount(patch, v[:, 0], minlength=n_links)
+    alone = (np.bincount(patch, minlength=n_links) == 1)[:, None]
+    moment = np.stack([np.bincount(patch, v[:, 0] * v[:, 1 + k], minlength=n_links) for k in range(3)], axis=1)
+    centroid = np.where(alone, v[lowest, 1:4], moment / area[:, None])
+    vector = np.stack([np.bincount(patch, v[:, 0] * normal[:, k], minlength=n_links) for k in range(3)], axis=1)
+    length = np.linalg.norm(vector, axis=1)[:, None]
+    direction = np.divide(vector, length, out=np.zeros_like(vector), where=length > 0.0)
+    link_normal = np.where(alone, normal[lowest], direction)
+    pieces = np.flatnonzero(triangle >= 0)
+    pieces = pieces[np.lexsort((triangle[pieces], patch[pieces]))]
+    surface_start = np.searchsorted(patch[pieces], np.arange(n_links + 1)).astype(np.int64)
+    link_start, link_neighbours = _symmetric_csr(np.where(ia >= 0, patch[ia], -1), np.where(ib >= 0, patch[ib], -1),
+                                                 n_links)
+    link_cells = link_cells[lowest]
     cell_start, cell_links = _cell_csr(link_cells[:, 0], link_cells[:, 1], n_cells)
     return ShardGraph(seeds=seeds[keep_cell], volume=volume[keep_cell], link_cells=link_cells.astype(np.int64),
-                      link_triangle=triangle.astype(np.int64), link_area=v[:, 0].copy(), link_centroid=v[:, 1:4].copy(),
-                      link_normal=normal, cell_start=cell_start, cell_links=cell_links,
+                      surface_start=surface_start, surface_triangle=triangle[pieces].astype(np.int64),
+                      link_area=area, link_centroid=np.ascontiguousarray(centroid),
+                      link_normal=np.ascontiguousarray(link_normal), cell_start=cell_start, cell_links=cell_links,
                       link_start=link_start, link_neighbours=link_neighbours, box=box,
                       cell_seed=np.flatnonzero(keep_cell), input_seeds=seeds, mesh_points=np.empty((0, 3)),
                       mesh_faces=np.empty((0, 3), np.int64))
