@@ -82,6 +82,7 @@ def weather(
     check_every: int = 10,
     orientation: str = "outward",
     repair: str = "retry",
+    normalization: str = "scale_free",
 ) -> pv.PolyData:
     """Curvature-driven weathering (Skorkovská et al. 2019, §3.3).
 
@@ -115,6 +116,10 @@ def weather(
         When the surface meets itself: roll back and shorten the steps there,
         cut the mesh along the intersection curves and go on (a wall eroded
         through opens a hole), or nothing.
+    normalization : {"scale_free", "paper"}, default: "scale_free"
+        Divide H by max |H| over the interior vertices (independent of units;
+        open scans erode like closed ones), or the paper's rule (only when
+        max |H| > 1, over all vertices); see docs/topics/invariance-erosion.md.
 
     Returns
     -------
@@ -134,7 +139,7 @@ def weather(
     """
     options = {"iterations": iterations, "power": power, "step_divisor": step_divisor, "direction": direction,
                "min_edge_ratio": min_edge_ratio, "check_every": check_every, "orientation": orientation,
-               "repair": repair}
+               "repair": repair, "normalization": normalization}
     if isinstance(erodibility, str):
         return apply_filter(Weathering, mesh, erodibility_array=erodibility, **options)
     return apply_filter(Weathering, mesh, erodibility=erodibility, **options)

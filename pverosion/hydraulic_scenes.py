@@ -74,13 +74,15 @@ def _emitter(position, direction, disc: float, radius: float, speed: float) -> s
     """Emitter string of a disc that fills its cross-section at ``speed`` with particles one diameter apart.
 
     The rate is what the emitter's lattice of spacing 2r in the disc releases
-    at that speed (a layer every 2r / speed seconds).
+    at that speed (a layer every 2r / speed seconds). Numbers are written in
+    full (``repr``), so the emitter parsed back is exactly this one: a rate
+    rounded to a few digits can exceed what the disc emits by the rounding.
     """
     spacing = 2.0 * radius
     layer = len(Emitter(position=tuple(position), direction=tuple(direction), radius=disc, rate=1.0).lattice(spacing))
     rate = layer * speed / spacing * (1.0 - 1e-9)
     values = [*np.asarray(position, dtype=float), *np.asarray(direction, dtype=float), disc, rate, speed]
-    return ",".join(f"{v:.6g}" for v in values)
+    return ",".join(repr(float(v)) for v in values)
 
 
 def _box(lo, hi) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
@@ -483,7 +485,8 @@ def river_scene(*, dem: str | Path | None = None, stride: int = 2, window=HELENS
     emitter = _emitter((*head, bed[0] + depth + 4.0 * radius), (0.0, 0.0, -1.0), 0.4 * width, radius, 10.0)
     lo, hi = points.min(axis=0), points.max(axis=0)
     reach = 2.0 * width
-    drain = "box:" + ",".join(f"{v:.6g}" for v in (*(outlet - reach), lo[2] - depth, *(outlet + reach), hi[2] + depth))
+    drain = "box:" + ",".join(repr(float(v)) for v in (*(outlet - reach), lo[2] - depth, *(outlet + reach),
+                                                        hi[2] + depth))
     domain = _box((*(lo[:2] - 2.0 * cell), lo[2] - depth), (*(hi[:2] + 2.0 * cell), hi[2] + depth))
     length = float(np.linalg.norm(np.diff(line, axis=0), axis=1).sum()) * cell
     return HydraulicScene(mesh, [emitter], [drain], radius, domain, _iterations(length, radius), "river")
@@ -729,7 +732,7 @@ def pour_scene(*, mesh: pv.PolyData | None = None, up=(0.0, 0.0, 1.0)) -> Hydrau
     centroid = (tri.mean(axis=1) * area[:, None]).sum(axis=0) / area.sum()
     width = float(np.min(hi[:2] - lo[:2]))
     emitter = _emitter((centroid[0], centroid[1], hi[2] + 0.2 * size), (0.0, 0.0, -1.0), 0.1 * width, radius, 0.5)
-    drain = f"plane:0,0,-1,{-(lo[2] - 0.05 * size):.6g}"
+    drain = f"plane:0,0,-1,{float(0.05 * size - lo[2])!r}"
     domain = _box(lo - 0.25 * size, hi + [0.25 * size, 0.25 * size, 0.4 * size])
     return HydraulicScene(mesh, [emitter], [drain], radius, domain, _iterations(size, radius), "pour")
 

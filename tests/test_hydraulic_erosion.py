@@ -34,6 +34,33 @@ def _solver(model: str = "curvature", *, seed: int = 0, speed: float | None = No
                            model=model, seed=seed, **options)
 
 
+@pytest.mark.parametrize("scale", [1e-3, 1e3])
+def test_curvature_model_is_independent_of_units(scale):
+    # the same scene in other units: lengths, speeds and gravity scaled alike (the rate in particles/s is not)
+    from pverosion.examples import load_rock
+    from pverosion.hydraulic_scenes import pour_scene
+
+    rock = load_rock(subdivisions=3)
+    runs = []
+    for s in (1.0, scale):
+        scaled_rock = rock.copy()
+        scaled_rock.points = np.asarray(rock.points, dtype=float) * s
+        scene = pour_scene(mesh=scaled_rock)
+        emitter = Emitter.parse(scene.emitters[0])
+        emitter = Emitter(emitter.position, emitter.direction, emitter.radius, emitter.rate * s, emitter.speed * s)
+        solver = HydraulicSolver(np.asarray(scene.mesh.points, dtype=float), scene.mesh.regular_faces,
+                                 fluid=FluidParameters(radius=scene.radius, gravity=(0.0, 0.0, -9.81 * s)),
+                                 emitters=[emitter], drains=[Drain.parse(d) for d in scene.drains],
+                                 domain=scene.domain)
+        solver.run(30)
+        runs.append((solver, np.ptp(solver.points, axis=0).max()))
+    (reference, size), (scaled, _) = runs
+    assert np.count_nonzero(np.linalg.norm(reference.displacement, axis=1)) > 20
+    assert np.array_equal(reference.faces, scaled.faces)
+    np.testing.assert_allclose(scaled.points / scale, reference.points, rtol=0, atol=1e-9 * size)
+    np.testing.assert_allclose(scaled.fluid.positions / scale, reference.fluid.positions, rtol=0, atol=1e-9 * size)
+
+
 def test_nearest_particle_distance_matches_kd_tree():
     rng = np.random.default_rng(3)
     points = rng.uniform(-1, 1, (3000, 3))
@@ -179,6 +206,8 @@ def test_bad_options_are_named():
         HydraulicSolver(block.points, block.regular_faces, fluid={"radius": 0.1})
     with pytest.raises(ValueError, match="domain"):
         HydraulicSolver(block.points, block.regular_faces, fluid=fluid, domain=((0, 0, 0), (-1, 1, 1)))
+    with pytest.raises(ValueError, match="normalization must be one of"):
+        HydraulicSolver(block.points, block.regular_faces, fluid=fluid, normalization="shifted")
     with pytest.raises(ValueError, match="critical_stress"):
         ShearParameters(critical_stress=-1.0)
 

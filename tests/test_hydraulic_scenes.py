@@ -26,6 +26,7 @@ from pverosion.kernels.geometry import signed_volume
 from pverosion.kernels.intersection import intersecting_faces
 from pverosion.kernels.orientation import winding_number
 from pverosion.kernels.overhangs import overhanging_vertices
+from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters, ParticleFluid
 
 DEM = DATA / "SainteHelens.dem"
 
@@ -225,6 +226,30 @@ def test_pour_over_the_bunny(bunny):
     scene = pour_scene(mesh=bunny, up=(0.0, 1.0, 0.0))
     check_scene(scene)
     assert scene.mesh.n_cells > bunny.n_cells
+
+
+@pytest.mark.parametrize("scale", [1e-3, 0.37, 1.0, 1e3])
+def test_pour_scene_fits_its_emitter_at_any_scale(scale):
+    # rates written with a few digits used to round above what the disc can emit (rock at 0.37: 343.909 > 343.909)
+    rock = load_rock(subdivisions=3)
+    reference = pour_scene(mesh=rock)
+    rock.points = np.asarray(rock.points, dtype=float) * scale + [0.0, 0.0, 1e4 * scale]  # far from the origin too
+    scene = pour_scene(mesh=rock)
+    check_scene(scene)
+    emitter = Emitter.parse(scene.emitters[0])
+    spacing = 2.0 * scene.radius
+    top = len(emitter.lattice(spacing)) * emitter.speed / spacing
+    assert 1.0 - 1e-6 < emitter.rate / top <= 1.0
+    fluid = ParticleFluid(FluidParameters(radius=scene.radius), domain=scene.domain, emitters=[emitter],
+                          drains=[Drain.parse(d) for d in scene.drains])
+    assert len(fluid.positions) == 0
+    # the set-up scales with the model: radius, disc, emitter height and drain plane
+    assert scene.radius == pytest.approx(reference.radius * scale, rel=1e-9)
+    assert emitter.radius == pytest.approx(Emitter.parse(reference.emitters[0]).radius * scale, rel=1e-9)
+    drain = np.array(scene.drains[0].split(":")[1].split(","), dtype=float)
+    z = np.asarray(scene.mesh.points)[:, 2]
+    assert -drain[3] < z.min() and z.min() - (-drain[3]) == pytest.approx(0.05 * np.ptp(np.asarray(scene.mesh.points),
+                                                                                          axis=0).max(), rel=1e-6)
 
 
 def test_fill_holes_closes_a_rock_with_its_top_cut_off():

@@ -29,3 +29,21 @@ def test_shifted_maps_range_to_unit_interval():
 def test_unknown_method_is_rejected():
     with pytest.raises(ValueError, match="normalization must be one of"):
         normalize_curvature(np.zeros(3), "log")
+
+
+def test_symmetric_always_divides_and_is_scale_free():
+    h = np.array([-0.3, 0.0, 0.5])
+    np.testing.assert_allclose(normalize_symmetric(h, always=True), [-0.6, 0.0, 1.0])
+    np.testing.assert_array_equal(normalize_symmetric(1e3 * h, always=True), normalize_symmetric(h, always=True))
+    np.testing.assert_array_equal(normalize_symmetric(np.zeros(3), always=True), 0.0)
+
+
+def test_statistics_over_a_mask_clip_the_rest():
+    h = np.array([30.0, -0.5, 0.25, 0.5])  # a rim vertex's estimate first
+    interior = np.array([False, True, True, True])
+    np.testing.assert_allclose(normalize_symmetric(h, where=interior, always=True), [1.0, -1.0, 0.5, 1.0])
+    np.testing.assert_allclose(normalize_shifted(h, where=interior), [1.0, 0.0, 0.75, 1.0])
+    nothing = np.zeros(4, bool)  # a mask selecting nothing counts as all
+    np.testing.assert_array_equal(normalize_shifted(h, where=nothing), normalize_shifted(h))
+    with pytest.raises(ValueError, match="where must have the shape"):
+        normalize_shifted(h, where=interior[:3])

@@ -165,6 +165,8 @@ def test_input_is_not_modified_and_bad_options_are_named():
         pverosion.weather(cube, power=0.5)
     with pytest.raises(ValueError, match="direction must be one of"):
         pverosion.weather(cube, direction="up")
+    with pytest.raises(ValueError, match="normalization must be one of"):
+        pverosion.weather(cube, normalization="symmetric")
     with pytest.raises(ValueError, match="erodibility must have shape"):
         pverosion.weather(cube, erodibility=np.ones(3))
     with pytest.raises(ValueError, match="not a point array"):
@@ -175,3 +177,105 @@ def test_input_is_not_modified_and_bad_options_are_named():
         WeatheringSolver(cube.points, cube.regular_faces, power=np.nan)
     with pytest.raises(pverosion.InvalidMeshError, match="triangulate"):
         pverosion.weather(pv.Plane())
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1e3])
+def test_weathering_is_independent_of_units(scale):
+    rock = pverosion.examples.load_rock(subdivisions=3)
+    points, faces = np.asarray(rock.points, dtype=float), rock.regular_faces
+    size = np.ptp(points, axis=0).max()
+    runs = {}
+    for normalization in ("scale_free", "paper"):
+        for s in (1.0, scale):
+            solver = WeatheringSolver(points * s, faces, power=2.0, normalization=normalization)
+            solver.run(20)
+            runs[normalization, s] = solver
+    reference, scaled = runs["scale_free", 1.0], runs["scale_free", scale]
+    assert np.array_equal(reference.faces, scaled.faces)
+    np.testing.assert_allclose(scaled.points / scale, reference.points, rtol=0, atol=1e-9 * size)
+    eroded = reference.statistics["eroded_volume"][-1]
+    assert eroded > 0.01 * reference.statistics["volume"][0]
+    np.testing.assert_allclose(scaled.statistics["eroded_volume"][-1], eroded * scale**3, rtol=1e-9)
+    if scale > 1.0:  # the paper's rule skips the normalisation where max |H| <= 1: the rock in thousands erodes less
+        paper = runs["paper", scale].statistics["eroded_volume"][-1] / scale**3
+        assert paper < 0.5 * runs["paper", 1.0].statistics["eroded_volume"][-1]
+
+
+def capsule(*, radius: float = 1.0, length: float = 2.0, rings: int = 40, around: int = 48):
+    """A cylinder capped by two hemispheres, mirror-symmetric about z = 0, and its rings' heights.
+
+    Rings of ``around`` points at even arc-length steps along the profile,
+    every other ring turned by half a step, fans at the poles (z = +-(length / 2
+    + radius)); ``rings`` must be even so that a ring lies at z = 0.
+
+    Returns
+    -------
+    points : numpy.ndarray, shape (V, 3)
+    faces : numpy.ndarray, shape (F, 3)
+    """
+    total = np.pi * radius + length
+    s = total * np.arange(1, rings) / rings
+    quarter = 0.5 * np.pi * radius
+    top, bottom = s < quarter, total - s < quarter
+    phi = np.where(top, s, np.where(bottom, total - s, quarter)) / radius
+    rho = radius * np.sin(phi)
+    z = np.where(top, 0.5 * length + radius * np.cos(phi),
+                 np.where(bottom, -0.5 * length - radius * np.cos(phi), 0.5 * length - (s - quarter)))
+    k = np.arange(rings - 1)[:, None]
+    angle = 2.0 * np.pi * (np.arange(around)[None, :] + 0.5 * (k % 2)) / around
+    points = np.stack([rho[:, None] * np.cos(angle), rho[:, None] * np.sin(angle),
+                       np.broadcast_to(z[:, None], angle.shape)], axis=-1).reshape(-1, 3)
+    n = len(points)
+    points = np.vstack([points, [[0.0, 0.0, 0.5 * length + radius], [0.0, 0.0, -0.5 * length - radius]]])
+    i = np.arange(around)
+
+    def at(ring, j):
+        return ring * around + j % around
+
+    faces = [np.stack([np.full(around, n), at(0, i), at(0, i + 1)], axis=1)]
+    for r in range(rings - 2):
+        if r % 2 == 0:  # ring r + 1 sits half a step ahead of ring r
+            faces += [np.stack([at(r, i), at(r + 1, i), at(r, i + 1)], axis=1),
+                      np.stack([at(r + 1, i), at(r + 1, i + 1), at(r, i + 1)], axis=1)]
+        else:
+            faces += [np.stack([at(r, i), at(r + 1, i), at(r + 1, i + 1)], axis=1),
+                      np.stack([at(r, i), at(r + 1, i + 1), at(r, i + 1)], axis=1)]
+    faces.append(np.stack([np.full(around, n + 1), at(rings - 2, i + 1), at(rings - 2, i)], axis=1))
+    return points, np.vstack(faces)
+
+
+def test_capsule_is_a_closed_outward_capsule():
+    points, faces = capsule()
+    assert edge_topology(faces, len(points)).n_boundary_edges == 0
+    tri = points[faces]
+    volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0
+    assert volume == pytest.approx(2.0 * np.pi + 4.0 / 3.0 * np.pi, rel=0.01)  # cylinder + sphere, inscribed
+
+
+def test_open_scan_erodes_like_the_closed_model():
+    points, faces = capsule()
+    # the open scan: the upper half, with a ragged rim of single-face flaps bent inward (as scans' rims are)
+    centre = points[faces].mean(axis=1)
+    on_rim = np.abs(points[faces][:, :, 2]) < 1e-12
+    keep = centre[:, 2] > 0.0
+    flaps = np.flatnonzero(~keep & (on_rim.sum(axis=1) == 2))[::2]
+    keep[flaps] = True
+    used = np.unique(faces[keep])
+    open_points, open_faces = points[used].copy(), np.searchsorted(used, faces[keep])
+    tips = np.searchsorted(used, faces[flaps][~on_rim[flaps]])
+    open_points[tips, :2] *= 0.8
+    moved = {}
+    for normalization in ("scale_free", "paper"):
+        closed = WeatheringSolver(points, faces, normalization=normalization)
+        scan = WeatheringSolver(open_points, open_faces, normalization=normalization)
+        h = scan.mean_curvature()
+        assert np.abs(h).max() > 1.5 * np.abs(h[scan._interior]).max()  # the rim's curvature is the largest
+        closed.run(10)
+        scan.run(10)
+        assert closed.collapses == scan.collapses == 0
+        shared = open_points[scan.ids][:, 2] > 0.5  # the cap and the cylinder four rings or more from the rim
+        mine = scan.displacement[shared]
+        theirs = closed.displacement[used[scan.ids][shared]]
+        moved[normalization] = np.linalg.norm(mine - theirs, axis=1) / np.linalg.norm(theirs, axis=1)
+    assert moved["scale_free"].max() < 0.05
+    assert moved["paper"].max() > 0.2  # the rim sets the paper's normalisation

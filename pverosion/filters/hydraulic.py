@@ -24,6 +24,7 @@ from pverosion.filters.weathering import MeshSolverFilter, weathering_output
 from pverosion.kernels.geometry import average_edge_length
 from pverosion.kernels.hydraulic_erosion import MODELS, HydraulicSolver, ShearParameters
 from pverosion.kernels.mesh_evolution import REPAIR_MODES
+from pverosion.kernels.normalize import SOLVER_NORMALIZATIONS
 from pverosion.kernels.orientation import ORIENTATIONS
 from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters
 from pverosion.kernels.validation import InvalidMeshError
@@ -149,6 +150,8 @@ class HydraulicErosion(MeshSolverFilter):
         Param("power", 1.0, "Power n of the shifted curvature (curvature model).", minimum=1.0),
         Param("step_divisor", 10.0, "Divisor x >= 1: a vertex moves at most e_avg / x per iteration (below 1 a step "
               "could turn the surface inside out).", minimum=1.0),
+        Param("normalization", "scale_free", "Curvature range H_min..H_max over the interior vertices (scale_free: "
+              "open scans) or over all vertices (paper); curvature model.", choices=SOLVER_NORMALIZATIONS),
         Param("influence", 1.0, "Region of influence d_influence of a particle (from its surface), in average "
               "edge lengths.", minimum=1e-6),
         Param("erosion_rate", 1e-3, "k of the erosion rate k (tau - tau_c)^a (sediment model).", minimum=0.0),
@@ -197,6 +200,7 @@ class HydraulicErosion(MeshSolverFilter):
         return HydraulicSolver(
             points, faces, fluid=fluid, emitters=emitters, drains=drains, domain=domain, walls=self.get_option("walls"),
             model=self.get_option("model"), power=self.get_option("power"),
+            normalization=self.get_option("normalization"),
             step_divisor=self.get_option("step_divisor"), influence=self.get_option("influence"),
             shear=ShearParameters(**{name: self.get_option(name) for name in _SHEAR}),
             erodibility=self._erodibility_for(inp), min_edge_ratio=self.get_option("min_edge_ratio"),

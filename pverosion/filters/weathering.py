@@ -15,6 +15,7 @@ from pverosion.filters.base import (
     set_point_array,
 )
 from pverosion.kernels.mesh_evolution import REPAIR_MODES, GuardedMeshSolver
+from pverosion.kernels.normalize import SOLVER_NORMALIZATIONS
 from pverosion.kernels.orientation import ORIENTATIONS
 from pverosion.kernels.topology import EdgeTopology, edge_topology
 from pverosion.kernels.validation import InvalidMeshError
@@ -154,6 +155,9 @@ class Weathering(MeshSolverFilter):
               minimum=1.0),
         Param("step_divisor", 10.0, "Divisor x >= 1: the largest displacement per step is e_avg / x (below 1 a step "
               "could turn the surface inside out).", minimum=1.0),
+        Param("normalization", "scale_free", "Curvature normalisation: divide by max |H| over the interior vertices "
+              "(scale_free: any units, open scans) or the paper's rule (only when max |H| > 1, all vertices).",
+              choices=SOLVER_NORMALIZATIONS),
         Param("direction", "laplacian", "Displacement direction: unit uniform Laplacian or inward normal.",
               choices=DIRECTIONS),
         Param("min_edge_ratio", 0.1, "Collapse edges shorter than this times e_avg after every step (0: off).",
@@ -173,6 +177,7 @@ class Weathering(MeshSolverFilter):
             faces,
             power=self.get_option("power"),
             step_divisor=self.get_option("step_divisor"),
+            normalization=self.get_option("normalization"),
             direction=self.get_option("direction"),
             erodibility=self._erodibility_for(inp),
             min_edge_ratio=self.get_option("min_edge_ratio"),

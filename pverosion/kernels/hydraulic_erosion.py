@@ -12,7 +12,8 @@ models:
     the closest colliding particle's surface, the sphere of radius r it
     collides as, so a fine mesh under large particles still erodes) and H_s
     the mean curvature mapped from ``<H_min, H_max>`` onto ``<0, 1>`` (gaps
-    erode slowest, protrusions fastest). The direction is the inward vertex normal where H = 0 and the
+    erode slowest, protrusions fastest; H_min and H_max over the interior
+    vertices, or over all with ``normalization="paper"``). The direction is the inward vertex normal where H = 0 and the
     unit uniform Laplacian where H reaches H_min or H_max, linearly
     interpolated (and made unit length) in between. No other vertex moves.
 
@@ -54,7 +55,7 @@ from pverosion.kernels.curvature import CurvatureTracker
 from pverosion.kernels.geometry import average_edge_length
 from pverosion.kernels.laplacian import laplacian_vectors
 from pverosion.kernels.mesh_evolution import GuardedMeshSolver, volume_area
-from pverosion.kernels.normalize import normalize_shifted
+from pverosion.kernels.normalize import SOLVER_NORMALIZATIONS, normalize_shifted
 from pverosion.kernels.particle_fluid import FluidParameters, ParticleFluid
 from pverosion.kernels.topology import vertex_face_incidence
 from pverosion.kernels.weathering import Erodibility, check_erodibility, erodibility_now
@@ -350,6 +351,11 @@ class HydraulicSolver(GuardedMeshSolver):
     model : {"curvature", "sediment"}, default: "curvature"
     power : float, default: 1.0
         n of the curvature model (H_s^n).
+    normalization : {"scale_free", "paper"}, default: "scale_free"
+        Curvature model: H_min and H_max are taken over the interior vertices
+        (not fixed boundary vertices nor their one-ring), so an open scan's
+        rim does not set them, or over all vertices as in the paper. Both are
+        independent of the model's units.
     step_divisor : float, default: 10.0
         x: the largest displacement per iteration is ``e_avg / x`` (both models).
     influence : float, default: 1.0
@@ -398,6 +404,7 @@ class HydraulicSolver(GuardedMeshSolver):
         walls: bool = False,
         model: str = "curvature",
         power: float = 1.0,
+        normalization: str = "scale_free",
         step_divisor: float = 10.0,
         influence: float = 1.0,
         shear: ShearParameters | None = None,
@@ -417,6 +424,8 @@ class HydraulicSolver(GuardedMeshSolver):
             raise ValueError(f"step_divisor must be > 0; got {step_divisor!r}")
         if not (np.isfinite(influence) and influence > 0.0):
             raise ValueError(f"influence must be > 0; got {influence!r}")
+        if normalization not in SOLVER_NORMALIZATIONS:
+            raise ValueError(f"normalization must be one of {SOLVER_NORMALIZATIONS}; got {normalization!r}")
         if not isinstance(fluid, FluidParameters):
             raise TypeError(f"fluid must be FluidParameters; got {type(fluid).__name__}")
         emitters = tuple(emitters)
@@ -424,6 +433,7 @@ class HydraulicSolver(GuardedMeshSolver):
                          max_halvings=max_halvings, orientation=orientation, repair=repair)
         self.model = model
         self.power = float(power)
+        self.normalization = normalization
         self.step_divisor = float(step_divisor)
         self.influence = float(influence)
         self.shear = shear if shear is not None else ShearParameters()
@@ -522,8 +532,10 @@ class HydraulicSolver(GuardedMeshSolver):
             h = curv.mean
             lap = laplacian_vectors(self.points, self.faces, ring=self._ring)
             clock = self._lap("curvature", clock)
-            self.points = _curvature_displace(self.points, curv.normals, lap, h, normalize_shifted(h),
-                                              float(h.min()), float(h.max()), factor, self.power,
+            over = None if self.normalization == "paper" else self._interior
+            stats = h if over is None or not over.any() else h[over]
+            self.points = _curvature_displace(self.points, curv.normals, lap, h, normalize_shifted(h, where=over),
+                                              float(stats.min()), float(stats.max()), factor, self.power,
                                               e_avg / self.step_divisor, self.displacement)
         else:
             self._sediment_step(fluid, touching, reach, e_avg)

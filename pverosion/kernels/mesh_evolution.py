@@ -244,6 +244,10 @@ class GuardedMeshSolver:
         self._edges = topo.edges
         self._usable = topo.face_count == 2
         self._fixed = topo.irregular_vertices(n)
+        # curvature statistics leave out the fixed vertices and their one-ring, whose estimates an open rim spoils
+        ring_ptr, ring_idx = self._ring
+        self._interior = ~self._fixed
+        self._interior[ring_idx[np.repeat(self._fixed, np.diff(ring_ptr))]] = False
         self._order = None  # spatial face order of the intersection check, made on first use
 
     def mean_curvature(self) -> np.ndarray:

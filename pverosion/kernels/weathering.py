@@ -1,8 +1,8 @@
 """Curvature-driven weathering of triangle meshes (Skorkovská 2019, §3.2–3.3, §4.1).
 
 Each step computes the mean curvature H of every vertex, normalises it
-symmetrically (``<-H, H> -> <-1, 1>``, left alone when it already fits), and
-moves each convex vertex (H > 0) by the length
+symmetrically (``<-H, H> -> <-1, 1>``, see ``normalization``), and moves each
+convex vertex (H > 0) by the length
 
     d_i = H_i^n * e_avg / x * erodibility_i
 
@@ -33,7 +33,7 @@ from pverosion.kernels.geometry import average_edge_length
 from pverosion.kernels.laplacian import laplacian_vectors
 from pverosion.kernels.materials import MaterialField
 from pverosion.kernels.mesh_evolution import GuardedMeshSolver, volume_area
-from pverosion.kernels.normalize import normalize_symmetric
+from pverosion.kernels.normalize import SOLVER_NORMALIZATIONS, normalize_symmetric
 
 __all__ = ["DIRECTIONS", "STAT_NAMES", "WeatheringSolver", "check_erodibility", "erodibility_now"]
 
@@ -96,6 +96,13 @@ class WeatheringSolver(GuardedMeshSolver):
         (:mod:`pverosion.kernels.materials`, erodibility = 1 / hardness), the
         last two evaluated every step so that erosion follows the material
         under each vertex *now*.
+    normalization : {"scale_free", "paper"}, default: "scale_free"
+        ``"scale_free"``: H is divided by max |H| over the interior vertices
+        (not fixed boundary vertices nor their one-ring) at every step, so the
+        same model in other units gives the same points up to scale, and an
+        open scan erodes as the closed model. ``"paper"``: the paper's rule,
+        max |H| over all vertices and only when it exceeds 1 (depends on the
+        units; an open rim's large |H| slows the whole scan down).
     min_edge_ratio, check_every, max_halvings, orientation, repair
         Mesh improvement and self-intersection guard, see
         :class:`~pverosion.kernels.mesh_evolution.GuardedMeshSolver`.
@@ -136,6 +143,7 @@ class WeatheringSolver(GuardedMeshSolver):
         max_halvings: int = 4,
         orientation: str = "outward",
         repair: str = "retry",
+        normalization: str = "scale_free",
     ) -> None:
         if not (np.isfinite(power) and power >= 1.0):
             raise ValueError(f"power must be a real number >= 1; got {power!r}")
@@ -143,11 +151,14 @@ class WeatheringSolver(GuardedMeshSolver):
             raise ValueError(f"step_divisor must be > 0; got {step_divisor!r}")
         if direction not in DIRECTIONS:
             raise ValueError(f"direction must be one of {DIRECTIONS}; got {direction!r}")
+        if normalization not in SOLVER_NORMALIZATIONS:
+            raise ValueError(f"normalization must be one of {SOLVER_NORMALIZATIONS}; got {normalization!r}")
         super().__init__(points, faces, min_edge_ratio=min_edge_ratio, check_every=check_every,
                          max_halvings=max_halvings, orientation=orientation, repair=repair)
         self.power = float(power)
         self.step_divisor = float(step_divisor)
         self.direction = direction
+        self.normalization = normalization
         self._erodibility = check_erodibility(erodibility, len(self.points))
         self._start()
 
@@ -173,7 +184,11 @@ class WeatheringSolver(GuardedMeshSolver):
         factor = self._scale[self.ids]
         if self._erodibility is not None:
             factor *= erodibility_now(self._erodibility, self.points, self.ids)
-        self.points = _displace(self.points, direction, self.direction == "laplacian", normalize_symmetric(h), h,
+        if self.normalization == "paper":
+            h_norm = normalize_symmetric(h)
+        else:
+            h_norm = normalize_symmetric(h, where=self._interior, always=True)
+        self.points = _displace(self.points, direction, self.direction == "laplacian", h_norm, h,
                                 e_avg, self.power, e_avg / self.step_divisor, factor, self._fixed, self.displacement)
         clock = self._lap("displacement", clock)
         if self.min_edge_ratio > 0.0:
