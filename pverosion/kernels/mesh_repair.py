@@ -74,12 +74,13 @@ IMPROVE_EDGE_RATIO = 0.25
 IMPROVE_MAX_ANGLE = 150.0
 """Mesh improvement after a repair: faces with a larger angle (degrees) are caps, flipped or split."""
 
-# per operation and operand: the winding number of the other operand a kept patch has, and whether it turns
-_KEEP = {
-    "union": ((0, False), (0, False)),
-    "intersection": ((1, False), (1, False)),
-    "difference": ((0, False), (1, True)),
-    "reverse_difference": ((1, True), (0, False)),
+# the region of every operation, from whether a point is inside A and inside B (each: its winding number >= 1)
+_REGION = {
+    None: lambda a: a,
+    "union": lambda a, b: a | b,
+    "intersection": lambda a, b: a & b,
+    "difference": lambda a, b: a & ~b,
+    "reverse_difference": lambda a, b: b & ~a,
 }
 
 
@@ -529,7 +530,7 @@ def _finalized(result: RepairResult) -> RepairResult:
             result = replace(result, points=points[used], faces=new_index[faces[keep]],
                              source_face=result.source_face[keep], source_vertex=result.source_vertex[used],
                              on_curve=result.on_curve[used], polylines=[line for line in lines if np.all(line >= 0)])
-    problems = mesh_problems(result.points, result.faces)
+    problems = mesh_problems(result.points, result.faces) if len(result.faces) else []  # empty: nothing left
     if problems:
         raise RepairError("the result would not be a closed, oriented 2-manifold without self-intersections: "
                           + "; ".join(problems))
@@ -545,9 +546,11 @@ def _check_closed(faces: np.ndarray, n_vertices: int, what: str) -> None:
 
 
 def _corefine(pts, fcs, group, operation) -> RepairResult:
-    """Cut the mesh along its intersection curves and keep the patches ``operation`` (None: repair) wants."""
+    """Cut the mesh along its intersection curves and keep the patches that bound the region of ``operation``
+    (None: repair), each operand's region being where its winding number is at least 1: a patch stays when that
+    region is on one side of it only, turned so that the region lies behind it."""
     canon = canonical_vertices(pts)
-    curves = curves_of(pts, fcs, group, canon)
+    curves = curves_of(pts, fcs, None, canon)  # also where an operand meets itself
     overlaps = coplanar_overlaps(pts, fcs, curves)
     if len(overlaps):
         f, g = overlaps[0]
@@ -562,15 +565,17 @@ def _corefine(pts, fcs, group, operation) -> RepairResult:
     patch = _patches(faces, n_all, cut_edges)
     source_group = np.zeros(len(faces), np.int64) if group is None else np.asarray(group)[source]
     reps = _representatives(all_points, faces, patch)
+    # winding numbers of A and B just in front of every patch; behind it, its own operand's is one more
+    n_groups = 1 if group is None else 2
     own = source_group[reps]
-    if operation is None:
-        # the winding number just in front of the patch must be 0
-        winding, down = _patch_windings(all_points, faces, source_group, reps, np.full(len(reps), -1))
-        stays, turns = winding - down == 0, np.zeros(len(reps), bool)
-    else:
-        rule = np.array(_KEEP[operation])  # (operand, (target winding of the other, turn))
-        winding, _ = _patch_windings(all_points, faces, source_group, reps, 1 - own)
-        stays, turns = winding == rule[own, 0], rule[own, 1].astype(bool)
+    front = np.zeros((n_groups, len(reps)), np.int64)
+    for k in range(n_groups):
+        winding, down = _patch_windings(all_points, faces, source_group, reps, np.full(len(reps), k))
+        front[k] = winding - (down & (own == k))
+    back = front + (np.arange(n_groups)[:, None] == own)
+    region = _REGION[operation]
+    inside_front, inside_back = region(*(front >= 1)), region(*(back >= 1))
+    stays, turns = inside_front != inside_back, inside_front
     keep, turn = stays[patch], turns[patch]
     faces = np.where(turn[:, None], faces[:, ::-1], faces)[keep]
     source = source[keep]
