@@ -18,7 +18,7 @@ from pverosion.api import (
     voxel_erosion,
     weather,
 )
-from pverosion.kernels.mesh_repair import CoplanarOverlapError
+from pverosion.kernels.mesh_repair import CoplanarOverlapError, RepairError
 from pverosion.kernels.validation import InvalidMeshError
 from pverosion.plotting import CURVATURE_CMAP, curvature_cmap
 
@@ -30,6 +30,7 @@ __all__ = [
     "CURVATURE_CMAP",
     "CoplanarOverlapError",
     "InvalidMeshError",
+    "RepairError",
     "__version__",
     "boolean",
     "curvature",

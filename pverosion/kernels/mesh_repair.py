@@ -45,12 +45,13 @@ from pverosion.kernels.intersection_curves import (
     unique_rows,
 )
 from pverosion.kernels.mesh_query import bucket_boxes, ray_winding
+from pverosion.kernels.orientation import orient_faces
 from pverosion.kernels.polygon_cut import cut_triangles
 from pverosion.kernels.topology import _incidence, boundary_edges, edge_topology, halfedge_twins
 from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh
 
 __all__ = ["OPERATIONS", "CoplanarOverlapError", "RepairError", "RepairResult", "boolean_meshes", "mesh_problems",
-           "repair_intersections"]
+           "outward_parts", "repair_intersections"]
 
 
 class CoplanarOverlapError(ValueError):
@@ -538,6 +539,40 @@ def _finalized(result: RepairResult) -> RepairResult:
 
 
 # --- front ends --------------------------------------------------------------------------------------------------
+
+
+def outward_parts(points, faces) -> np.ndarray:
+    """The faces of a closed mesh oriented consistently and outward, part by part, for a repair or Boolean.
+
+    Every edge-connected part is made consistent
+    (:func:`~pverosion.kernels.orientation.orient_faces`) and turned to
+    enclose a positive volume; then a part is turned back into a cavity wall
+    when every one of its faces lies inside an odd number of the other parts
+    (winding numbers by rays from every face). Parts that overlap, or lie
+    inside another only partly, stay outward: overlapping parts merge in a
+    repair instead of cutting holes into each other.
+
+    Parameters
+    ----------
+    points : array_like, shape (V, 3)
+    faces : array_like, shape (F, 3)
+
+    Returns
+    -------
+    numpy.ndarray, shape (F, 3), int64
+    """
+    pts, fcs = as_triangle_mesh(points, faces)
+    oriented = orient_faces(pts, fcs, mode="outward")
+    fcs, part = oriented.faces, oriented.component
+    tri = pts[fcs] - pts.min(axis=0)
+    volume = np.bincount(part, np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])))
+    fcs = np.where((volume < 0.0)[part, None], fcs[:, ::-1], fcs)
+    if len(volume) > 1:
+        winding, down = _patch_windings(pts, fcs, part, np.arange(len(fcs)), np.full(len(fcs), -1))
+        odd = (winding - down) % 2 == 1  # the parts' own winding is 0 just in front of their faces
+        cavity = np.bincount(part, odd, minlength=len(volume)) == np.bincount(part, minlength=len(volume))
+        fcs = np.where(cavity[part, None], fcs[:, ::-1], fcs)
+    return fcs
 
 
 def _check_closed(faces: np.ndarray, n_vertices: int, what: str) -> None:
