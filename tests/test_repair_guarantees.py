@@ -244,66 +244,90 @@ def _manifold(mesh):
 # --- the fuzz corpus ---------------------------------------------------------------------------------------------
 
 
-def _primitives():
-    """Small closed outward meshes with float32-exact coordinates (manifold3d reads float32)."""
-    shapes = [_box((-0.5, -0.5, -0.5), (0.5, 0.5, 0.5)), _box((-0.6, -0.3, -0.4), (0.6, 0.3, 0.4), level=1)]
-    for nsub in (1, 2):
-        s = pv.Icosphere(radius=0.55, nsub=nsub)
-        shapes.append((np.asarray(s.points, float), np.asarray(s.regular_faces, np.int64)))
-    c = pv.Cylinder(radius=0.4, height=1.0, resolution=9).triangulate().clean()
-    shapes.append((np.asarray(c.points, float), np.asarray(c.regular_faces, np.int64)))
-    return [(p.astype(np.float32).astype(float), f) for p, f in shapes]
+def _arrays(mesh):
+    return np.asarray(mesh.points, np.float64), np.asarray(mesh.regular_faces, np.int64)
 
 
-def fuzz_case(rng, shapes):
-    """Operands A and B (points, faces) of one random case: rigid copies of two primitives, half of them turned
-    by multiples of 90 degrees and moved by halves on a grid (exactly shared planes, edges and vertices)."""
-    (pa, fa), (pb, fb) = (shapes[k] for k in rng.integers(len(shapes), size=2))
-    if rng.random() < 0.5:
-        turn = Rotation.from_euler("xyz", 90.0 * rng.integers(4, size=3), degrees=True).as_matrix().round()
-        shift = 0.5 * rng.integers(-2, 3, size=3)
-    else:
-        turn = Rotation.random(random_state=int(rng.integers(2**31))).as_matrix()
-        shift = rng.uniform(-0.8, 0.8, size=3)
-    pb = (pb @ turn.T + shift).astype(np.float32).astype(float)
-    return (pa, fa), (pb, fb)
+def _manifold3d(points, faces):
+    mesh = manifold3d.Manifold(manifold3d.Mesh(vert_properties=np.asarray(points, np.float32),
+                                               tri_verts=np.asarray(faces, np.uint32)))
+    return mesh if mesh.status() == manifold3d.Error.NoError else None
 
 
-def run_fuzz_case(a, b, operation):
-    """One case: the result is clean with manifold3d's volume, or CoplanarOverlapError for inputs whose faces do
-    overlap in a common plane. Returns "ok", "coplanar" or "manifold3d refused"."""
+def check_boolean_case(a, b, operation):
+    """One Boolean: clean with manifold3d's volume (1e-6 relative), or CoplanarOverlapError for inputs whose faces
+    do overlap in a common plane. Returns "ok", "coplanar" or "manifold3d refused"."""
     points, faces = _join(a, b)
-    group = np.repeat([0, 1], [len(a[1]), len(b[1])])
-    curves = intersection_curves(points, faces, group=group)
-    overlapping = len(coplanar_overlaps(points, faces, curves)) > 0
     try:
         result = boolean_meshes(*a, *b, operation)
     except CoplanarOverlapError:
-        assert overlapping
+        curves = intersection_curves(points, faces, group=np.repeat([0, 1], [len(a[1]), len(b[1])]))
+        assert len(coplanar_overlaps(points, faces, curves)) > 0
         return "coplanar"
     if len(result.faces):
         assert_two_manifold(result.points, result.faces)
-    ma, mb = (manifold3d.Manifold(manifold3d.Mesh(vert_properties=np.asarray(p, np.float32),
-                                                  tri_verts=np.asarray(f, np.uint32))) for p, f in (a, b))
-    if ma.status() != manifold3d.Error.NoError or mb.status() != manifold3d.Error.NoError:
+    ma, mb = _manifold3d(*a), _manifold3d(*b)
+    if ma is None or mb is None:
         return "manifold3d refused"
     reference = {"union": lambda: ma + mb, "intersection": lambda: ma ^ mb, "difference": lambda: ma - mb,
                  "reverse_difference": lambda: mb - ma}[operation]().volume()
     volume = signed_volume(result.points, result.faces) if len(result.faces) else 0.0
-    assert volume == pytest.approx(reference, rel=1e-6, abs=1e-9)
+    assert volume == pytest.approx(reference, rel=1e-6, abs=1e-12)
+    return "ok"
+
+
+def check_soup_case(parts):
+    """A soup of overlapping closed parts as one mesh, repaired: clean, with the volume of manifold3d's union of
+    the parts; or CoplanarOverlapError where faces of the parts overlap in a common plane."""
+    points, faces = _join(*parts)
+    try:
+        result = repair_intersections(points, faces)
+    except CoplanarOverlapError:
+        assert len(coplanar_overlaps(points, faces, intersection_curves(points, faces))) > 0
+        return "coplanar"
+    assert_two_manifold(result.points, result.faces)
+    solids = [_manifold3d(*part) for part in parts]
+    if any(solid is None for solid in solids):
+        return "manifold3d refused"
+    union = manifold3d.Manifold.batch_boolean(solids, manifold3d.OpType.Add)
+    assert signed_volume(result.points, result.faces) == pytest.approx(union.volume(), rel=1e-6)
     return "ok"
 
 
 FUZZ_CASES = 500
 
 
-def test_fuzz_corpus_of_rigid_copies_against_manifold3d():
+@pytest.fixture
+def one_thread():
+    """Small meshes run fastest on one thread (and must not depend on the thread count)."""
+    import numba
+
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    yield
+    numba.set_num_threads(threads)
+
+
+def test_fuzz_corpus_against_manifold3d(one_thread):
+    """Seeded: 400 Booleans of two rigid copies (every operation alike) and 100 repaired soups of three. Every
+    case gives a clean result with manifold3d's volume, CoplanarOverlapError (faces overlapping in a plane) or
+    RepairError; never a broken mesh."""
+    from pverosion.intersection_scenes import fuzz_operands, fuzz_primitives
+
     rng = np.random.default_rng(20261125)
-    shapes = _primitives()
+    shapes = fuzz_primitives()
     outcomes = {}
     for case in range(FUZZ_CASES):
-        a, b = fuzz_case(rng, shapes)
-        operation = OPERATIONS[case % len(OPERATIONS)]
-        outcome = run_fuzz_case(a, b, operation)
+        try:
+            if case % 5 < 4:
+                a, b = (_arrays(mesh) for mesh in fuzz_operands(rng, shapes))
+                outcome = check_boolean_case(a, b, OPERATIONS[case % 4])
+            else:
+                outcome = check_soup_case([_arrays(mesh) for mesh in fuzz_operands(rng, shapes, count=3)])
+        except RepairError:
+            outcome = "refused"
         outcomes[outcome] = outcomes.get(outcome, 0) + 1
-    assert outcomes.get("ok", 0) >= FUZZ_CASES // 2
+    assert sum(outcomes.values()) == FUZZ_CASES
+    assert outcomes.get("ok", 0) >= 0.9 * FUZZ_CASES, outcomes
+    # exactly degenerate meetings of three surfaces on an edge are refused with RepairError, rarely
+    assert outcomes.get("refused", 0) <= 0.01 * FUZZ_CASES, outcomes

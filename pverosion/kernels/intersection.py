@@ -376,7 +376,8 @@ def _face_box_pairs(points, faces, planes, lo, hi, group, origin, inv_h, start, 
                         continue
                     # faces that share a vertex meet beyond it only when neither has its other two vertices on
                     # one side of the other's plane
-                    if _one_side(points, faces, planes, f, g, shared) or _one_side(points, faces, planes, g, f, shared):
+                    if (_one_side(points, faces, planes, f, g, shared)
+                            or _one_side(points, faces, planes, g, f, shared)):
                         continue
                     if n_out < out.shape[0]:
                         out[n_out, 0] = f

@@ -211,7 +211,7 @@ def _cut_faces(pts, fcs, canon, curves):
     triangles, _, tri_start = cut_triangles(xy, location, param, point_start, segments, seg_start)
     counts = np.diff(tri_start)
     if np.any(counts == 0):
-        raise RuntimeError(f"face {cut[np.argmax(counts == 0)]} could not be cut along its intersection segments")
+        raise RepairError(f"face {cut[np.argmax(counts == 0)]} could not be cut along its intersection segments")
     ids = np.empty(point_start[-1], np.int64)
     ids[corner_rows] = canon[fcs[cut]].ravel()
     ids[other_rows] = point_id[table[other, 1]]
@@ -604,9 +604,17 @@ def _corefine(pts, fcs, group, operation) -> RepairResult:
     n_groups = 1 if group is None else 2
     own = source_group[reps]
     front = np.zeros((n_groups, len(reps)), np.int64)
+    fcs_group = np.zeros(len(fcs), np.int64) if group is None else np.asarray(group)
+    pair_group = fcs_group[curves.pairs]
     for k in range(n_groups):
-        winding, down = _patch_windings(all_points, faces, source_group, reps, np.full(len(reps), k))
-        front[k] = winding - (down & (own == k))
+        # an operand's own winding number in front of its faces is 0 unless it meets itself (or it is a repair)
+        if group is not None and not np.any((pair_group[:, 0] == k) & (pair_group[:, 1] == k)):
+            rows = own != k
+        else:
+            rows = np.ones(len(reps), bool)
+        winding, down = _patch_windings(all_points, faces, source_group, reps[rows],
+                                        np.full(np.count_nonzero(rows), k))
+        front[k, rows] = winding - (down & (own[rows] == k))
     back = front + (np.arange(n_groups)[:, None] == own)
     region = _REGION[operation]
     inside_front, inside_back = region(*(front >= 1)), region(*(back >= 1))
