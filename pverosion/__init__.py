@@ -32,6 +32,7 @@ _LAZY = {
     "voxel_erosion": "pverosion.api",
     "weather": "pverosion.api",
     "CoplanarOverlapError": "pverosion.kernels.mesh_repair",
+    "RepairError": "pverosion.kernels.mesh_repair",
     "InvalidMeshError": "pverosion.kernels.validation",
     "CURVATURE_CMAP": "pverosion.plotting",  # importing pverosion.plotting registers the colour map
     "curvature_cmap": "pverosion.plotting",
@@ -52,7 +53,7 @@ if TYPE_CHECKING:
         voxel_erosion,
         weather,
     )
-    from pverosion.kernels.mesh_repair import CoplanarOverlapError
+    from pverosion.kernels.mesh_repair import CoplanarOverlapError, RepairError
     from pverosion.kernels.validation import InvalidMeshError
     from pverosion.plotting import CURVATURE_CMAP, curvature_cmap
 

@@ -47,12 +47,12 @@ class ErosionAccessor:
         """Hydraulic erosion of this closed mesh by a particle fluid; see :func:`pverosion.hydraulic_erosion`."""
         return api.hydraulic_erosion(self._dataset, **options)
 
-    def repair(self, *, orientation: str = "keep", tolerance: float = DEFAULT_TOLERANCE,
+    def repair(self, *, orientation: str = "outward", tolerance: float = DEFAULT_TOLERANCE,
                improve: bool = False) -> pv.PolyData:
         """Self-intersections of this closed mesh removed; see :func:`pverosion.repair`."""
         return api.repair(self._dataset, orientation=orientation, tolerance=tolerance, improve=improve)
 
-    def boolean(self, other: pv.PolyData, operation: str = "union", *, orientation: str = "keep",
+    def boolean(self, other: pv.PolyData, operation: str = "union", *, orientation: str = "outward",
                 tolerance: float = DEFAULT_TOLERANCE, improve: bool = False) -> pv.PolyData:
         """Boolean ``operation`` of this closed mesh (A) and ``other`` (B); see :func:`pverosion.boolean`."""
         return api.boolean(self._dataset, other, operation, orientation=orientation, tolerance=tolerance,

@@ -351,7 +351,7 @@ def freeze_thaw(mesh: pv.PolyData, *, paths: int = 1000, cells: int = 1000, patt
     return pv.wrap(alg.run(mesh))
 
 
-def repair(mesh: pv.PolyData, *, orientation: str = "keep", tolerance: float = DEFAULT_TOLERANCE,
+def repair(mesh: pv.PolyData, *, orientation: str = "outward", tolerance: float = DEFAULT_TOLERANCE,
            improve: bool = False) -> pv.PolyData:
     """Remove the self-intersections of a closed triangle mesh (Skorkovská's thesis §10.2).
 
@@ -364,11 +364,12 @@ def repair(mesh: pv.PolyData, *, orientation: str = "keep", tolerance: float = D
     Parameters
     ----------
     mesh : pyvista.PolyData
-        Closed triangle mesh, oriented outward. It is not modified.
-    orientation : {"keep", "outward"}, default: "keep"
-        ``"keep"`` trusts the input's winding; ``"outward"`` first makes each
-        closed part consistent and outward (a part that starts inside another
-        one is taken for a cavity wall, so not for overlapping parts).
+        Closed triangle mesh. It is not modified.
+    orientation : {"outward", "keep"}, default: "outward"
+        ``"outward"`` first makes each closed part consistent and outward (a
+        part wholly inside another is a cavity wall; overlapping parts stay
+        outward and merge); ``"keep"`` trusts the input's winding, which must
+        then point outward.
     tolerance : float, default: 1e-9
         Pre-pass: nearly degenerate faces (an edge shorter than this, or a
         corner this close to the opposite edge, relative to the bounding-box
@@ -392,7 +393,11 @@ def repair(mesh: pv.PolyData, *, orientation: str = "keep", tolerance: float = D
     Raises
     ------
     pverosion.InvalidMeshError
-        Empty or open mesh, non-triangles, or faces pointing inward.
+        Empty or open mesh, non-triangles, or (``orientation="keep"``) faces
+        pointing inward.
+    pverosion.RepairError
+        If the result could not be made a closed, oriented 2-manifold without
+        self-intersections (nothing broken is returned).
     pverosion.CoplanarOverlapError
         If faces overlap in a common plane (cutting those is not supported).
 
@@ -411,19 +416,20 @@ def repair(mesh: pv.PolyData, *, orientation: str = "keep", tolerance: float = D
     return apply_filter(RepairIntersections, mesh, orientation=orientation, tolerance=tolerance, improve=improve)
 
 
-def boolean(a: pv.PolyData, b: pv.PolyData, operation: str = "union", *, orientation: str = "keep",
+def boolean(a: pv.PolyData, b: pv.PolyData, operation: str = "union", *, orientation: str = "outward",
             tolerance: float = DEFAULT_TOLERANCE, improve: bool = False) -> pv.PolyData:
     """Union, intersection or difference of two closed triangle meshes (Skorkovská's thesis §10.3).
 
     Parameters
     ----------
     a, b : pyvista.PolyData
-        Closed triangle meshes, oriented outward. They are not modified.
+        Closed triangle meshes. They are not modified. An input that
+        intersects itself stands for the region where its winding number is
+        at least 1, as :func:`repair` would make it.
     operation : {"union", "intersection", "difference", "reverse_difference"}, default: "union"
         A ∪ B, A ∩ B, A ∖ B or B ∖ A.
-    orientation : {"keep", "outward"}, default: "keep"
-        ``"keep"`` trusts the inputs' winding; ``"outward"`` first makes each
-        closed part of each input consistent and outward.
+    orientation : {"outward", "keep"}, default: "outward"
+        As in :func:`repair`, for each input.
     tolerance, improve
         Pre-pass and mesh improvement, as in :func:`repair`.
 

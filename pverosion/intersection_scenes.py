@@ -13,7 +13,10 @@ twelve-object scene uses the bunny scan when the caller passes it.
   through each other, a single self-intersecting closed mesh (Figure 10.14);
 - :func:`cube_and_sphere`: the Boolean operands of Figure 10.15;
 - :func:`twelve_objects`: six bunnies and six procedural shapes at seeded
-  random poses (Figure 10.13's scene, ~77k faces).
+  random poses (Figure 10.13's scene, ~77k faces);
+- :func:`fuzz_primitives` and :func:`fuzz_operands`: seeded rigid copies of
+  small shapes (and the bunny), half of them on a grid of exact moves, for
+  fuzzing the repair and the Booleans.
 """
 
 from __future__ import annotations
@@ -28,8 +31,8 @@ from pverosion.examples import load_rock
 from pverosion.hydraulic_scenes import fill_holes
 from pverosion.kernels.orientation import orient_faces
 
-__all__ = ["SCENES", "combine", "crossed_tube", "cube_and_sphere", "rotated_cuboids", "tube", "twelve_objects",
-           "two_spheres"]
+__all__ = ["SCENES", "combine", "crossed_tube", "cube_and_sphere", "fuzz_operands", "fuzz_primitives",
+           "rotated_cuboids", "tube", "twelve_objects", "two_spheres"]
 
 
 def _polydata(points: np.ndarray, faces: np.ndarray) -> pv.PolyData:
@@ -163,6 +166,45 @@ def twelve_objects(*, bunny: str | Path | None = None, seed: int = 0, spread: fl
         shift = rng.uniform(-0.5 * spread, 0.5 * spread, 3)
         placed.append(_polydata(np.asarray(mesh.points, dtype=np.float64) @ turn.T + shift, mesh.regular_faces))
     return placed
+
+
+def fuzz_primitives(*, bunny: str | Path | None = None, bunny_faces: int = 2000) -> list[pv.PolyData]:
+    """Small closed outward meshes for fuzzing the repair and the Booleans, coordinates exact in float32 (so
+    that manifold3d, which reads float32, sees the same meshes).
+
+    Two boxes (one with subdivided sides), two icospheres, a 9-sided
+    cylinder, and with ``bunny`` the scan decimated to about ``bunny_faces``
+    faces (holes filled, unit size).
+    """
+    shapes = [pv.Box(bounds=(-0.5, 0.5, -0.5, 0.5, -0.5, 0.5)).triangulate(),
+              pv.Box(bounds=(-0.6, 0.6, -0.3, 0.3, -0.4, 0.4), level=1).triangulate(),
+              pv.Icosphere(radius=0.55, nsub=1), pv.Icosphere(radius=0.55, nsub=2),
+              pv.Cylinder(radius=0.4, height=1.0, resolution=9).triangulate()]
+    if bunny is not None:
+        shapes.append(_bunny(bunny, bunny_faces).scale(0.6))
+    out = []
+    for mesh in shapes:
+        mesh = mesh.clean()
+        out.append(_polydata(np.asarray(mesh.points, np.float32).astype(np.float64), mesh.regular_faces))
+    return out
+
+
+def fuzz_operands(rng: np.random.Generator, shapes: list[pv.PolyData], count: int = 2) -> list[pv.PolyData]:
+    """``count`` rigid copies of randomly chosen ``shapes``: the first as it is, each further one with
+    probability 1/2 turned by multiples of 90 degrees and moved by multiples of 1/2 (exactly shared planes,
+    edges and vertices, touching and nested parts), else turned and moved at random; float32-exact."""
+    picked = [shapes[k] for k in rng.integers(len(shapes), size=count)]
+    out = [picked[0].copy()]
+    for mesh in picked[1:]:
+        if rng.random() < 0.5:
+            turn = Rotation.from_euler("xyz", 90.0 * rng.integers(4, size=3), degrees=True).as_matrix().round()
+            shift = 0.5 * rng.integers(-2, 3, size=3)
+        else:
+            turn = Rotation.random(random_state=int(rng.integers(1 << 31))).as_matrix()
+            shift = rng.uniform(-0.8, 0.8, size=3)
+        points = (np.asarray(mesh.points, np.float64) @ turn.T + shift).astype(np.float32).astype(np.float64)
+        out.append(_polydata(points, mesh.regular_faces))
+    return out
 
 
 SCENES = {

@@ -108,6 +108,8 @@ def exact_touching_pairs(points, faces):
     the package's predicates and detector) for the pairs a floating-point test with a tolerance flags."""
     found = []
     for f, g in candidate_pairs(points, faces):
+        if set(faces[f]) & set(faces[g]):
+            continue  # neighbours at a vertex (folds there are intersection_curves' segments)
         if not triangles_intersect(points[faces[f]], points[faces[g]]):
             continue
         p = [[Fraction(x) for x in points[v]] for v in faces[f]]

@@ -92,9 +92,10 @@ def test_repair_merges_overlapping_parts_and_drops_a_nested_one(sphere_a, sphere
     assert out.n_open_edges == 0 and out.is_manifold
     assert _signed_volume(out) == pytest.approx(_manifold_volume(sphere_a, sphere_b, "union"), rel=1e-3)
     assert int(out.field_data["intersection_loops"][0]) == 1
-    # a small sphere wholly inside: winding number 2 there, so its surface goes and nothing is cut
+    # a small sphere wholly inside, its winding kept: winding number 2 there, so its surface goes and nothing is
+    # cut (by default it would be taken for a cavity wall and turned)
     nested = sphere_a + pv.Icosphere(radius=0.3, nsub=2, center=(0.1, 0.0, 0.0))
-    kept = pverosion.repair(nested)
+    kept = pverosion.repair(nested, orientation="keep")
     assert kept.n_cells == sphere_a.n_cells and int(kept.field_data["intersection_loops"][0]) == 0
     np.testing.assert_array_equal(np.sort(kept["source_face"]), np.arange(sphere_a.n_cells))
     assert not kept["on_intersection"].any()
@@ -269,8 +270,8 @@ def test_errors_are_clear(sphere_a, sphere_b, tmp_path, capsys):
         pverosion.boolean(pv.Box(), sphere_b)
     inward = pv.PolyData.from_regular_faces(sphere_a.points, sphere_a.regular_faces[:, ::-1])
     with pytest.raises(pverosion.InvalidMeshError, match="inward"):
-        pverosion.repair(inward)
-    assert pverosion.repair(inward, orientation="outward").n_cells == sphere_a.n_cells
+        pverosion.repair(inward, orientation="keep")
+    assert pverosion.repair(inward).n_cells == sphere_a.n_cells  # orientation="outward" by default
     # the command line: exit status 2 and the message
     sphere_a.save(tmp_path / "a.vtp")
     open_sphere.save(tmp_path / "open.vtp")

@@ -34,9 +34,9 @@ from pverosion.kernels.mesh_repair import (
     OPERATIONS,
     RepairResult,
     boolean_meshes,
+    outward_parts,
     repair_intersections,
 )
-from pverosion.kernels.orientation import orient_faces
 from pverosion.kernels.topology import boundary_edges
 from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh
 
@@ -53,9 +53,9 @@ _MESH_PARAMS = (
           "cutting made, keeping the intersection curves."),
 )
 
-_ORIENTATION_DOC = ("Face orientation of the input(s): keep (must point outward) or make each closed part "
-                    "consistent and outward first (parts that start inside another part become cavity walls, "
-                    "so not for overlapping parts).")
+_ORIENTATION_DOC = ("Face orientation of the input(s): outward (default) makes each closed part consistent and "
+                    "outward first (a part wholly inside another becomes a cavity wall; overlapping parts stay "
+                    "outward and merge), keep trusts the input's winding (it must point outward).")
 
 
 def _closed_operand(mesh, orientation: str, what: str) -> tuple[np.ndarray, np.ndarray]:
@@ -68,7 +68,7 @@ def _closed_operand(mesh, orientation: str, what: str) -> tuple[np.ndarray, np.n
         raise InvalidMeshError(f"{what} must be closed: it has boundary edges "
                                "(merge duplicate points with .clean() or fill its holes first)")
     if orientation == "outward":
-        faces = orient_faces(points, faces, mode="outward").faces
+        faces = outward_parts(points, faces)
     tri = points[faces]
     volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0
     if volume < 0.0:
@@ -177,7 +177,7 @@ class RepairIntersections(ErosionFilter):
 
     LABEL = "Repair self-intersections"
     COMMAND = "repair"
-    PARAMS = (Param("orientation", "keep", _ORIENTATION_DOC, choices=REPAIR_ORIENTATIONS), *_MESH_PARAMS)
+    PARAMS = (Param("orientation", "outward", _ORIENTATION_DOC, choices=REPAIR_ORIENTATIONS), *_MESH_PARAMS)
 
     def execute(self, inp, out) -> None:
         """Repair ``inp`` into ``out``."""
@@ -209,7 +209,7 @@ class BooleanOperation(ErosionFilter):
     PARAMS = (
         Param("operation", "union", "union (A or B), intersection (A and B), difference (A minus B) "
               "or reverse_difference (B minus A).", choices=OPERATIONS),
-        Param("orientation", "keep", _ORIENTATION_DOC, choices=REPAIR_ORIENTATIONS),
+        Param("orientation", "outward", _ORIENTATION_DOC, choices=REPAIR_ORIENTATIONS),
         *_MESH_PARAMS,
     )
 

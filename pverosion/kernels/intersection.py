@@ -287,6 +287,16 @@ def _share_vertex(faces, f, g):
 
 
 @njit(cache=True, error_model="numpy")
+def _shared_vertices(faces, f, g):
+    n = 0
+    for a in range(3):
+        for b in range(3):
+            if faces[f, a] == faces[g, b]:
+                n += 1
+    return n
+
+
+@njit(cache=True, error_model="numpy")
 def _pair_hits(points, faces, lo, hi, f, g):
     """Test pair (f, g): boxes, adjacency, then the triangles."""
     for d in range(3):
@@ -342,8 +352,8 @@ def _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
 @njit(cache=True, error_model="numpy")
 def _face_box_pairs(points, faces, planes, lo, hi, group, origin, inv_h, start, entries, cells, size, f, out,
                     n_out):
-    """Faces g > f whose boxes meet f's box, that share no vertex with f, (with groups) are in another group,
-    and that neither lies strictly on one side of the other's plane; written to ``out`` from ``n_out`` on when
+    """Faces g > f whose boxes meet f's box, that share no edge with f, (with groups) are in another group,
+    and that neither lies strictly on one side of the other's plane (apart from a shared vertex); written to ``out`` from ``n_out`` on when
     it is large enough. Returns the count."""
     fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
     for ix in range(fx0, fx1 + 1):
@@ -361,9 +371,13 @@ def _face_box_pairs(points, faces, planes, lo, hi, group, origin, inv_h, start, 
                     for d in range(3):
                         if lo[f, d] > hi[g, d] or lo[g, d] > hi[f, d]:
                             overlap = False
-                    if not overlap or _share_vertex(faces, f, g):
+                    shared = _shared_vertices(faces, f, g)
+                    if not overlap or shared > 1:
                         continue
-                    if _one_side(points, faces, planes, f, g) or _one_side(points, faces, planes, g, f):
+                    # faces that share a vertex meet beyond it only when neither has its other two vertices on
+                    # one side of the other's plane
+                    if (_one_side(points, faces, planes, f, g, shared)
+                            or _one_side(points, faces, planes, g, f, shared)):
                         continue
                     if n_out < out.shape[0]:
                         out[n_out, 0] = f
@@ -394,11 +408,14 @@ def _face_planes(points, faces):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _one_side(points, faces, planes, f, g):
+def _one_side(points, faces, planes, f, g, shared):
     """Whether face g lies strictly on one side of face f's plane, by more than the rounding (a float test that
-    never rejects a pair an exact test would call touching)."""
+    never rejects a pair an exact test would call touching); with ``shared`` = 1, whether its two vertices that
+    are not f's do."""
     above = below = 0
     for k in range(3):
+        if shared and (faces[g, k] == faces[f, 0] or faces[g, k] == faces[f, 1] or faces[g, k] == faces[f, 2]):
+            continue
         p = v3.row(points, faces[g, k])
         d = planes[f, 0] * p[0] + planes[f, 1] * p[1] + planes[f, 2] * p[2] - planes[f, 3]
         tol = planes[f, 4] + 1e-9 * (abs(p[0]) + abs(p[1]) + abs(p[2]))
@@ -406,7 +423,7 @@ def _one_side(points, faces, planes, f, g):
             above += 1
         elif d < -tol:
             below += 1
-    return above == 3 or below == 3
+    return above == 3 - shared or below == 3 - shared
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
@@ -431,11 +448,13 @@ def _box_pairs(points, faces, planes, lo, hi, ok, group, origin, inv_h, start, e
 
 
 def candidate_pairs(points, faces, *, group=None) -> np.ndarray:
-    """Pairs of non-degenerate faces that may meet and share no vertex (broad phase).
+    """Pairs of non-degenerate faces that may meet and share no edge (broad phase).
 
     Their bounding boxes meet, and neither face lies on one side of the
     other's plane by more than a generous bound of the rounding (so every
-    pair that touches in exact arithmetic is kept).
+    pair that touches in exact arithmetic is kept). Faces that share one
+    vertex are kept only when neither has its two other vertices on one side
+    of the other's plane: they may meet beyond the shared vertex.
 
     Parameters
     ----------

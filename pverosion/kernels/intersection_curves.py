@@ -244,20 +244,31 @@ def _key(canon, n_vertices, tri_f, tri_g, f, g, loc_f, loc_g):
 
 
 @njit(cache=True)
+def _is_corner(canon, tri, v):
+    """Whether canonical vertex ``v`` is a corner of ``tri``."""
+    return canon[tri[0]] == v or canon[tri[1]] == v or canon[tri[2]] == v
+
+
+@njit(cache=True)
 def _classify(p, faces, canon, f, g, keys, locs, cases):
     """Intersection of faces f and g: its status, and for a segment the keys (2, 3) and locations (2, 2) of its
     ends (filled in place); ``cases`` gets the case index of each face (2,)."""
     tf, tg = faces[f], faces[g]
     sf = np.empty(3, np.int64)
     sg = np.empty(3, np.int64)
+    shared = 0
     for k in range(3):
-        sf[k] = _o3(p, tg[0], tg[1], tg[2], tf[k])
-        sg[k] = _o3(p, tf[0], tf[1], tf[2], tg[k])
+        own_f = tf[k] == tg[0] or tf[k] == tg[1] or tf[k] == tg[2]  # a shared vertex lies in both planes
+        sf[k] = 0 if own_f else _o3(p, tg[0], tg[1], tg[2], tf[k])
+        sg[k] = 0 if tg[k] == tf[0] or tg[k] == tf[1] or tg[k] == tf[2] else _o3(p, tf[0], tf[1], tf[2], tg[k])
+        shared += own_f
     cases[0], cases[1] = _case(sf), _case(sg)
     if sf[0] == 0 and sf[1] == 0 and sf[2] == 0:
         return _COPLANAR
     if abs(sf[0] + sf[1] + sf[2]) == 3 or abs(sg[0] + sg[1] + sg[2]) == 3:
         return _APART
+    if shared and (abs(sf[0] + sf[1] + sf[2]) == 2 or abs(sg[0] + sg[1] + sg[2]) == 2):
+        return _APART  # neighbours that meet only at their shared vertex
     n_vertices = p.shape[0]
     axis_f, axis_g = _drop_axis(p, tf), _drop_axis(p, tg)
     orient_f = _o2(p, axis_f, tf[0], tf[1], tf[2])
@@ -291,8 +302,9 @@ def _classify(p, faces, canon, f, g, keys, locs, cases):
             keys[found, 0], keys[found, 1], keys[found, 2] = kind, x, y
             locs[found, 0], locs[found, 1] = loc_f, loc_g
             found += 1
-    if found == 0:
-        return _APART
+    if found == 0 or (found == 1 and shared and keys[0, 0] == VERTEX and _is_corner(canon, tf, keys[0, 1])
+                      and _is_corner(canon, tg, keys[0, 1])):
+        return _APART  # neighbours meeting only at their shared vertex are not touching
     return _TOUCH if found == 1 else _CROSS
 
 
@@ -559,7 +571,9 @@ def intersection_curves(points, faces, *, group=None) -> IntersectionCurves:
     ----------
     points : array_like, shape (V, 3)
     faces : array_like, shape (F, 3)
-        Faces that share a vertex index are neighbours and not tested.
+        Faces that share an edge (two vertex indices) are neighbours and not
+        tested; faces that share one vertex are, as they may meet beyond it
+        (a fold), and touch there otherwise.
     group : array_like of int, shape (F,), optional
         Test only pairs of faces of different groups (the mesh each face
         comes from); by default every pair of faces (self-intersections).

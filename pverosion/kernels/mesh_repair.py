@@ -45,11 +45,13 @@ from pverosion.kernels.intersection_curves import (
     unique_rows,
 )
 from pverosion.kernels.mesh_query import bucket_boxes, ray_winding
+from pverosion.kernels.orientation import orient_faces
 from pverosion.kernels.polygon_cut import cut_triangles
-from pverosion.kernels.topology import _incidence, boundary_edges
+from pverosion.kernels.topology import _incidence, boundary_edges, edge_topology, halfedge_twins
 from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh
 
-__all__ = ["OPERATIONS", "CoplanarOverlapError", "RepairResult", "boolean_meshes", "repair_intersections"]
+__all__ = ["OPERATIONS", "CoplanarOverlapError", "RepairError", "RepairResult", "boolean_meshes", "mesh_problems",
+           "outward_parts", "repair_intersections"]
 
 
 class CoplanarOverlapError(ValueError):
@@ -63,18 +65,23 @@ DEFAULT_TOLERANCE = 1e-9
 """Default ``tolerance`` of the pre-pass: faces with an edge shorter than this, or a corner this close to the
 opposite edge, relative to the input's bounding-box diagonal, are nearly degenerate."""
 
+THIN_SHELL = 1e-9
+"""A shell (edge-connected part) of the result whose |volume| is at most this times its area times the bounding-box
+diagonal encloses nothing: it is dropped, and :func:`mesh_problems` reports one."""
+
 IMPROVE_EDGE_RATIO = 0.25
 """Mesh improvement after a repair: edges shorter than this times the input's average edge length collapse."""
 
 IMPROVE_MAX_ANGLE = 150.0
 """Mesh improvement after a repair: faces with a larger angle (degrees) are caps, flipped or split."""
 
-# per operation and operand: the winding number of the other operand a kept patch has, and whether it turns
-_KEEP = {
-    "union": ((0, False), (0, False)),
-    "intersection": ((1, False), (1, False)),
-    "difference": ((0, False), (1, True)),
-    "reverse_difference": ((1, True), (0, False)),
+# the region of every operation, from whether a point is inside A and inside B (each: its winding number >= 1)
+_REGION = {
+    None: lambda a: a,
+    "union": lambda a, b: a | b,
+    "intersection": lambda a, b: a & b,
+    "difference": lambda a, b: a & ~b,
+    "reverse_difference": lambda a, b: b & ~a,
 }
 
 
@@ -204,7 +211,7 @@ def _cut_faces(pts, fcs, canon, curves):
     triangles, _, tri_start = cut_triangles(xy, location, param, point_start, segments, seg_start)
     counts = np.diff(tri_start)
     if np.any(counts == 0):
-        raise RuntimeError(f"face {cut[np.argmax(counts == 0)]} could not be cut along its intersection segments")
+        raise RepairError(f"face {cut[np.argmax(counts == 0)]} could not be cut along its intersection segments")
     ids = np.empty(point_start[-1], np.int64)
     ids[corner_rows] = canon[fcs[cut]].ravel()
     ids[other_rows] = point_id[table[other, 1]]
@@ -334,7 +341,238 @@ def _representatives(points, faces, patch):
     return out
 
 
+# --- the guarantee: a closed, oriented 2-manifold without self-intersections -----------------------------------
+
+
+class RepairError(RuntimeError):
+    """The repair or Boolean could not produce a closed, consistently oriented 2-manifold without
+    self-intersections; nothing broken is returned instead."""
+
+
+@njit(cache=True)
+def _fans(faces, partner, n_vertices):
+    """Split every vertex into its fans: the vertex of every corner (3F,) after the split (a vertex whose faces
+    form several fans gets a new vertex per further fan), and the number of vertices; -1 as the count when a
+    half-edge has no twin running the other way (not a closed, oriented surface)."""
+    n_corners = 3 * faces.shape[0]
+    corner_vertex = np.full(n_corners, -1, np.int64)
+    seen = np.zeros(n_vertices, np.bool_)
+    count = n_vertices
+    for c0 in range(n_corners):
+        if corner_vertex[c0] >= 0:
+            continue
+        v = faces[c0 // 3, c0 % 3]
+        vid = v
+        if seen[v]:
+            vid = count
+            count += 1
+        seen[v] = True
+        c = c0
+        while True:
+            corner_vertex[c] = vid
+            f, k = c // 3, c % 3
+            t = partner[3 * f + (k + 2) % 3]  # twin of the half-edge into v: it runs out of v
+            if t < 0 or faces[t // 3, t % 3] != v:
+                return corner_vertex, -1
+            c = t
+            if c == c0:
+                break
+            if corner_vertex[c] >= 0:
+                return corner_vertex, -1
+    return corner_vertex, count
+
+
+def _radial_twins(points, faces, partner, others):
+    """``partner`` (3F,) completed at edges of more than two faces: each half-edge a -> b is paired with the
+    face b -> a next to it around the edge on the side its solid lies (behind its normal), so that solids touching
+    along the edge come apart there. Edges whose faces do not alternate in direction around it stay unpaired."""
+    partner = partner.copy()
+    many = np.flatnonzero(others >= 2)
+    if len(many) == 0:
+        return partner
+    a = faces.ravel()[many]
+    b = faces[many // 3, (many % 3 + 1) % 3]
+    key = np.minimum(a, b) * len(points) + np.maximum(a, b)
+    order = np.lexsort((many, key))
+    many, a, b, key = many[order], a[order], b[order], key[order]
+    for run in np.split(np.arange(len(key)), np.flatnonzero(np.diff(key)) + 1):
+        lo, hi = min(a[run[0]], b[run[0]]), max(a[run[0]], b[run[0]])
+        axis = points[hi] - points[lo]
+        u = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 * np.linalg.norm(axis) else [0.0, 1.0, 0.0])
+        w = np.cross(axis, u)
+        apex = points[faces[many[run] // 3, (many[run] % 3 + 2) % 3]] - points[lo]
+        angle = np.arctan2(apex @ w, apex @ u)  # increasing in the right-hand turn about lo -> hi
+        ring = run[np.argsort(angle, kind="stable")]
+        up = a[ring] == lo  # faces running lo -> hi have their normal towards increasing angle
+        if len(ring) % 2 or np.any(up == np.roll(up, 1)):
+            continue
+        for i in np.flatnonzero(up):
+            h, t = many[ring[i]], many[ring[i - 1]]  # the solid of h lies towards decreasing angle
+            partner[h], partner[t] = t, h
+    return partner
+
+
+def _split_touching(points, faces):
+    """Vertices and edges where sheets touch split apart (fans and radial pairing, see :func:`_fans`): the new
+    points (V', 3), faces (F, 3), the old vertex of every new one (V',), or None when the faces do not pair up
+    into a closed, oriented surface."""
+    partner, others = halfedge_twins(faces, len(points))
+    partner = _radial_twins(points, faces, partner, others)
+    corner_vertex, count = _fans(faces, partner, len(points))
+    if count < 0:
+        return None
+    origin = np.arange(count)
+    new = corner_vertex >= len(points)
+    origin[corner_vertex[new]] = faces.ravel()[new]
+    return points[origin], corner_vertex.reshape(-1, 3), origin
+
+
+def _shells(points, faces):
+    """Shell (edge-connected part) of every face (F,), and the signed volume and area of every shell."""
+    shell = _patches(faces, len(points), np.zeros(0, np.int64))
+    tri = points[faces]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n = shell.max() + 1 if len(shell) else 0
+    volume = np.bincount(shell, np.einsum("ij,ij->i", tri[:, 0] - points.min(axis=0), cross) / 6.0, minlength=n)
+    area = np.bincount(shell, 0.5 * np.linalg.norm(cross, axis=1), minlength=n)
+    return shell, volume, area
+
+
+def mesh_problems(points, faces) -> list[str]:
+    """What keeps a mesh from being a closed, consistently oriented 2-manifold without self-intersections.
+
+    Checked: every edge in exactly two faces, running opposite ways in them;
+    the faces around every vertex form one fan; no shell (edge-connected
+    part) whose volume is below :data:`THIN_SHELL` times its area times the
+    bounding-box diagonal; the winding number just in front of every shell
+    is 0 (no part inside out or inside another); and, by the exact
+    predicates of :func:`~pverosion.kernels.intersection_curves.intersection_curves`,
+    no two faces cross or overlap in a common plane (faces at coincident
+    vertices may touch there).
+
+    Parameters
+    ----------
+    points : array_like, shape (V, 3)
+    faces : array_like, shape (F, 3)
+
+    Returns
+    -------
+    list of str
+        One sentence per kind of problem; empty for a valid mesh.
+    """
+    pts, fcs = as_triangle_mesh(points, faces)
+    n = len(pts)
+    problems = []
+    count = edge_topology(fcs, n).face_count
+    if np.any(count != 2):
+        problems.append(f"{np.count_nonzero(count != 2)} edges are not in exactly two faces")
+    directed = fcs[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    same_way = len(directed) - len(unique_rows(directed)[0])
+    if same_way:
+        problems.append(f"{same_way} edges run the same way in two faces (inconsistent winding)")
+    if problems:
+        return problems
+    _, n_split = _fans(fcs, halfedge_twins(fcs, n)[0], n)
+    if n_split != n:
+        problems.append(f"{n_split - n} vertices join separate fans of faces")
+    if len(fcs) == 0:
+        return problems
+    shell, volume, area = _shells(pts, fcs)
+    thin = np.abs(volume) <= THIN_SHELL * _diagonal(pts) * area
+    if thin.any():
+        problems.append(f"{np.count_nonzero(thin)} shells enclose no volume (|volume| <= {THIN_SHELL:g} x area x "
+                        "diagonal)")
+    reps = _representatives(pts, fcs, shell)
+    winding, down = _patch_windings(pts, fcs, np.zeros(len(fcs), np.int64), reps, np.full(len(reps), -1))
+    if np.any(winding - down != 0):
+        problems.append(f"{np.count_nonzero(winding - down != 0)} shells are inside out or inside another shell")
+    canon = canonical_vertices(pts)
+    curves = curves_of(pts, fcs, None, canon)
+    ends = curves.point_keys[curves.segments]  # (S, 2, 3)
+    ends_at_vertices = np.all(ends[:, :, 0] == VERTEX, axis=1)
+    corners = canon[fcs[curves.pairs]]  # (S, 2, 3)
+    shared = np.all(np.any(ends[:, :, None, None, 1] == corners[:, None], axis=3), axis=(1, 2))
+    crossing = np.count_nonzero(~(ends_at_vertices & shared))
+    if crossing:
+        problems.append(f"{crossing} pairs of faces cross")
+    overlaps = len(coplanar_overlaps(pts, fcs, curves))
+    if overlaps:
+        problems.append(f"{overlaps} pairs of faces overlap in a common plane")
+    return problems
+
+
+def _diagonal(points: np.ndarray) -> float:
+    return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0))) if len(points) else 0.0
+
+
+def _finalized(result: RepairResult) -> RepairResult:
+    """``result`` made a closed, oriented 2-manifold by rule, or :class:`RepairError`.
+
+    Where the kept surface touches itself (solids meeting at a vertex or
+    along an edge) the vertices are split, one per fan of faces and the faces
+    around an edge paired around their solids; shells that enclose no volume
+    (below :data:`THIN_SHELL`) are dropped. Then :func:`mesh_problems` must
+    find nothing.
+    """
+    points, faces = result.points, result.faces
+    split = _split_touching(points, faces) if len(faces) else None
+    if split is not None:
+        points, faces, origin = split
+        result = replace(result, points=points, faces=faces, source_vertex=result.source_vertex[origin],
+                         on_curve=result.on_curve[origin])
+    if len(faces):
+        shell, volume, area = _shells(points, faces)
+        keep = (np.abs(volume) > THIN_SHELL * _diagonal(points) * area)[shell]
+        if not keep.all():
+            used = np.unique(faces[keep])
+            new_index = np.full(len(points), -1, np.int64)
+            new_index[used] = np.arange(len(used))
+            lines = [new_index[line] for line in result.polylines]
+            result = replace(result, points=points[used], faces=new_index[faces[keep]],
+                             source_face=result.source_face[keep], source_vertex=result.source_vertex[used],
+                             on_curve=result.on_curve[used], polylines=[line for line in lines if np.all(line >= 0)])
+    problems = mesh_problems(result.points, result.faces) if len(result.faces) else []  # empty: nothing left
+    if problems:
+        raise RepairError("the result would not be a closed, oriented 2-manifold without self-intersections: "
+                          + "; ".join(problems))
+    return result
+
+
 # --- front ends --------------------------------------------------------------------------------------------------
+
+
+def outward_parts(points, faces) -> np.ndarray:
+    """The faces of a closed mesh oriented consistently and outward, part by part, for a repair or Boolean.
+
+    Every edge-connected part is made consistent
+    (:func:`~pverosion.kernels.orientation.orient_faces`) and turned to
+    enclose a positive volume; then a part is turned back into a cavity wall
+    when every one of its faces lies inside an odd number of the other parts
+    (winding numbers by rays from every face). Parts that overlap, or lie
+    inside another only partly, stay outward: overlapping parts merge in a
+    repair instead of cutting holes into each other.
+
+    Parameters
+    ----------
+    points : array_like, shape (V, 3)
+    faces : array_like, shape (F, 3)
+
+    Returns
+    -------
+    numpy.ndarray, shape (F, 3), int64
+    """
+    pts, fcs = as_triangle_mesh(points, faces)
+    oriented = orient_faces(pts, fcs, mode="outward")
+    fcs, part = oriented.faces, oriented.component
+    tri = pts[fcs] - pts.min(axis=0)
+    volume = np.bincount(part, np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])))
+    fcs = np.where((volume < 0.0)[part, None], fcs[:, ::-1], fcs)
+    if len(volume) > 1:
+        winding, down = _patch_windings(pts, fcs, part, np.arange(len(fcs)), np.full(len(fcs), -1))
+        odd = (winding - down) % 2 == 1  # the parts' own winding is 0 just in front of their faces
+        cavity = np.bincount(part, odd, minlength=len(volume)) == np.bincount(part, minlength=len(volume))
+        fcs = np.where(cavity[part, None], fcs[:, ::-1], fcs)
+    return fcs
 
 
 def _check_closed(faces: np.ndarray, n_vertices: int, what: str) -> None:
@@ -343,9 +581,11 @@ def _check_closed(faces: np.ndarray, n_vertices: int, what: str) -> None:
 
 
 def _corefine(pts, fcs, group, operation) -> RepairResult:
-    """Cut the mesh along its intersection curves and keep the patches ``operation`` (None: repair) wants."""
+    """Cut the mesh along its intersection curves and keep the patches that bound the region of ``operation``
+    (None: repair), each operand's region being where its winding number is at least 1: a patch stays when that
+    region is on one side of it only, turned so that the region lies behind it."""
     canon = canonical_vertices(pts)
-    curves = curves_of(pts, fcs, group, canon)
+    curves = curves_of(pts, fcs, None, canon)  # also where an operand meets itself
     overlaps = coplanar_overlaps(pts, fcs, curves)
     if len(overlaps):
         f, g = overlaps[0]
@@ -360,15 +600,25 @@ def _corefine(pts, fcs, group, operation) -> RepairResult:
     patch = _patches(faces, n_all, cut_edges)
     source_group = np.zeros(len(faces), np.int64) if group is None else np.asarray(group)[source]
     reps = _representatives(all_points, faces, patch)
+    # winding numbers of A and B just in front of every patch; behind it, its own operand's is one more
+    n_groups = 1 if group is None else 2
     own = source_group[reps]
-    if operation is None:
-        # the winding number just in front of the patch must be 0
-        winding, down = _patch_windings(all_points, faces, source_group, reps, np.full(len(reps), -1))
-        stays, turns = winding - down == 0, np.zeros(len(reps), bool)
-    else:
-        rule = np.array(_KEEP[operation])  # (operand, (target winding of the other, turn))
-        winding, _ = _patch_windings(all_points, faces, source_group, reps, 1 - own)
-        stays, turns = winding == rule[own, 0], rule[own, 1].astype(bool)
+    front = np.zeros((n_groups, len(reps)), np.int64)
+    fcs_group = np.zeros(len(fcs), np.int64) if group is None else np.asarray(group)
+    pair_group = fcs_group[curves.pairs]
+    for k in range(n_groups):
+        # an operand's own winding number in front of its faces is 0 unless it meets itself (or it is a repair)
+        if group is not None and not np.any((pair_group[:, 0] == k) & (pair_group[:, 1] == k)):
+            rows = own != k
+        else:
+            rows = np.ones(len(reps), bool)
+        winding, down = _patch_windings(all_points, faces, source_group, reps[rows],
+                                        np.full(np.count_nonzero(rows), k))
+        front[k, rows] = winding - (down & (own[rows] == k))
+    back = front + (np.arange(n_groups)[:, None] == own)
+    region = _REGION[operation]
+    inside_front, inside_back = region(*(front >= 1)), region(*(back >= 1))
+    stays, turns = inside_front != inside_back, inside_front
     keep, turn = stays[patch], turns[patch]
     faces = np.where(turn[:, None], faces[:, ::-1], faces)[keep]
     source = source[keep]
@@ -424,6 +674,20 @@ def _improved(result: RepairResult, edge: float) -> RepairResult:
     return result
 
 
+def _checked(result: RepairResult, edge: float | None) -> RepairResult:
+    """:func:`_finalized` ``result``, improved first when ``edge`` (the input's average edge length) is given;
+    should the improved mesh fail the checks, the result unimproved (with a warning)."""
+    if edge is not None:
+        improved = _improved(result, edge)
+        if improved is not result:
+            try:
+                return _finalized(improved)
+            except RepairError:
+                warnings.warn("the mesh improvement after the repair broke the result's checks; the repaired mesh "
+                              "is left as it was", RuntimeWarning, stacklevel=3)
+    return _finalized(result)
+
+
 def repair_intersections(points, faces, *, tolerance: float = DEFAULT_TOLERANCE, improve: bool = False
                          ) -> RepairResult:
     """Remove the self-intersections of a closed mesh (and intersections between its closed parts).
@@ -467,7 +731,7 @@ def repair_intersections(points, faces, *, tolerance: float = DEFAULT_TOLERANCE,
     _check_closed(fcs, len(pts), "the mesh")
     clean_pts, clean_fcs, vertex_source, face_source = _without_degenerate(pts, fcs, _tolerance(pts, tolerance))
     result = _renumbered(_corefine(clean_pts, clean_fcs, None, None), vertex_source, face_source)
-    return _improved(result, average_edge_length(pts, fcs)) if improve else result
+    return _checked(result, average_edge_length(pts, fcs) if improve else None)
 
 
 def boolean_meshes(points_a, faces_a, points_b, faces_b, operation: str, *, tolerance: float = DEFAULT_TOLERANCE,
@@ -515,6 +779,5 @@ def boolean_meshes(points_a, faces_a, points_b, faces_b, operation: str, *, tole
     group = np.repeat([0, 1], [len(ca[1]), len(cb[1])])
     result = _renumbered(_corefine(pts, fcs, group, operation), np.concatenate([ca[2], cb[2] + len(pa)]),
                          np.concatenate([ca[3], cb[3] + len(fa)]))
-    if not improve:
-        return result
-    return _improved(result, average_edge_length(np.concatenate([pa, pb]), np.concatenate([fa, fb + len(pa)])))
+    edge = average_edge_length(np.concatenate([pa, pb]), np.concatenate([fa, fb + len(pa)])) if improve else None
+    return _checked(result, edge)
