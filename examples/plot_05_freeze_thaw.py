@@ -18,7 +18,7 @@ from pverosion.shard_scenes import hill_cone
 
 QUICK = os.environ.get("PVEROSION_QUICK") == "1"  # set by the documentation build
 hill = hill_cone()
-cells, paths = (800, 8000) if QUICK else (3000, 60000)
+cells, paths = (800, 30000) if QUICK else (3000, 120000)
 out = pverosion.freeze_thaw(hill, paths=paths, cells=cells, pattern="grid", water_direction=(-1, -1, -0.6),
                             seed=0)
 surface = out["surface"]
@@ -35,5 +35,5 @@ plotter.subplot(0, 1)
 plotter.add_text("eroded surface", font_size=10)
 plotter.add_mesh(surface, color="tan")
 plotter.link_views()
-plotter.view_vector((-1, -1, 0.6))
+plotter.view_vector((1, 1, 0.6))  # the side the water comes from
 plotter.show()

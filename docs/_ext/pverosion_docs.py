@@ -7,141 +7,24 @@
   command line from the argument parser itself.
 * A completeness check: after reading, every name in the ``__all__`` of every
   public module, every accessor method and every CLI subcommand must be
-  documented, otherwise the build warns (an error under ``sphinx-build -W``).
+  documented, and every gallery example must have produced a figure;
+  otherwise the build warns (an error under ``sphinx-build -W``).
+
+What must be documented is computed by :mod:`pverosion_api`.
 """
 
 from __future__ import annotations
 
-import argparse
-import functools
-import ast
-import importlib
-import inspect
 import os
-import pkgutil
 from pathlib import Path
 
 from docutils import nodes
 from docutils.parsers.rst import Directive
 from sphinx.util import logging
 
+from pverosion_api import cli_parsers, index_page, missing_from_reference, module_page, public_modules
+
 logger = logging.getLogger(__name__)
-
-PACKAGE = "pverosion"
-#: Sections of the API reference, in order: (title, module-name prefixes).
-GROUPS = (
-    ("Functions and the accessor", ("pverosion", "pverosion.api", "pverosion.io", "pverosion.plotting")),
-    ("Filters (VTK algorithms)", ("pverosion.filters",)),
-    ("Kernels (arrays in, arrays out)", ("pverosion.kernels",)),
-    ("Batch runs", ("pverosion.batch",)),
-    ("Command line", ("pverosion.cli",)),
-    ("Example data and scenes", ("pverosion.examples", "pverosion.scenes", "pverosion.hydraulic_scenes",
-                                 "pverosion.voxel_scenes", "pverosion.shard_scenes", "pverosion.intersection_scenes")),
-)
-ACCESSOR = "pverosion._accessor.ErosionAccessor"
-
-
-@functools.lru_cache(maxsize=1)
-def public_modules() -> tuple[str, ...]:
-    """Names of the package's public modules (no component starting with ``_``), sorted."""
-    package = importlib.import_module(PACKAGE)
-    names = [PACKAGE]
-    for info in pkgutil.walk_packages(package.__path__, prefix=PACKAGE + "."):
-        if not any(part.startswith("_") for part in info.name.split(".")):
-            names.append(info.name)
-    return tuple(sorted(names))
-
-
-def public_names(module_name: str) -> list[str]:
-    """The module's ``__all__`` (a module without one exports nothing documented)."""
-    return list(getattr(importlib.import_module(module_name), "__all__", ()))
-
-
-def _is_routine(obj) -> bool:
-    """Functions, including numba dispatchers (which wrap a Python function as ``py_func``)."""
-    return inspect.isroutine(obj) or inspect.isfunction(getattr(obj, "py_func", None))
-
-
-def _assigned_names(module) -> set[str]:
-    """Names bound by an assignment at the top level of the module's source."""
-    tree = ast.parse(inspect.getsource(module))
-    names = set()
-    for node in tree.body:
-        targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(
-            node, ast.AnnAssign) else []
-        for target in targets:
-            names.update(n.id for n in ast.walk(target) if isinstance(n, ast.Name))
-    return names
-
-
-def _defined_here(module, name: str) -> bool:
-    """Whether ``module.name`` is defined in ``module`` (not imported from elsewhere)."""
-    obj = getattr(module, name)
-    if inspect.isclass(obj) or _is_routine(obj):
-        return getattr(obj, "__module__", None) == module.__name__
-    return name in _assigned_names(module)
-
-
-def _member_directive(full: str, obj) -> str:
-    if inspect.isclass(obj):
-        return f".. autoclass:: {full}\n   :members:\n   :show-inheritance:\n"
-    if _is_routine(obj):
-        return f".. autofunction:: {full}\n"
-    return f".. autodata:: {full}\n   :no-value:\n"
-
-
-def canonical_name(module_name: str, name: str) -> str:
-    """Full name under which ``module_name.name`` is documented: where it is defined."""
-    module = importlib.import_module(module_name)
-    if _defined_here(module, name):
-        return f"{module_name}.{name}"
-    obj = getattr(module, name)
-    owner = getattr(obj, "__module__", None)
-    if (inspect.isclass(obj) or _is_routine(obj)) and owner:
-        return f"{owner}.{getattr(obj, '__qualname__', name)}"
-    for other in public_modules():
-        candidate = importlib.import_module(other)
-        if getattr(candidate, name, None) is obj and _defined_here(candidate, name):
-            return f"{other}.{name}"
-    return f"{module_name}.{name}"
-
-
-def module_page(module_name: str) -> str:
-    """reStructuredText of one module's API page."""
-    module = importlib.import_module(module_name)
-    own, reexported = [], []
-    for name in public_names(module_name):
-        (own if _defined_here(module, name) else reexported).append(name)
-    title = module_name
-    lines = [title, "=" * len(title), "", f".. automodule:: {module_name}", "   :no-members:", ""]
-    if own:
-        lines += [".. rubric:: Defined here", "", ".. autosummary::", "   :nosignatures:", ""]
-        lines += [f"   {name}" for name in own] + [""]
-    if reexported:
-        lines += [".. rubric:: Re-exported", ""]
-        lines += [f"* :py:obj:`{name} <{canonical_name(module_name, name)}>`" for name in reexported] + [""]
-    for name in own:
-        lines.append(_member_directive(f"{module_name}.{name}", getattr(module, name)))
-    return "\n".join(lines) + "\n"
-
-
-def index_page(modules: tuple[str, ...]) -> str:
-    """reStructuredText of the API reference's table of contents, module pages grouped by layer."""
-    lines = []
-    placed = set()
-    for title, prefixes in GROUPS:
-        members = [m for m in modules if m not in placed
-                   and any(m == p or (p != PACKAGE and m.startswith(p + ".")) for p in prefixes)]
-        if not members:
-            continue
-        placed.update(members)
-        lines += [".. rubric:: " + title, "", ".. toctree::", "   :maxdepth: 1", ""]
-        lines += [f"   generated/{m}" for m in members] + [""]
-    rest = [m for m in modules if m not in placed]
-    if rest:
-        lines += [".. rubric:: Other modules", "", ".. toctree::", "   :maxdepth: 1", ""]
-        lines += [f"   generated/{m}" for m in rest] + [""]
-    return "\n".join(lines)
 
 
 def _write_if_changed(path: Path, text: str) -> None:
@@ -161,15 +44,6 @@ def generate_api(app) -> None:
     for module_name in modules:
         _write_if_changed(out / f"{module_name}.rst", module_page(module_name))
     _write_if_changed(out / "contents.txt", index_page(modules))
-
-
-def cli_parsers() -> dict[str, argparse.ArgumentParser]:
-    """Every ``pverosion`` subcommand's parser, by name, in the order of ``pverosion --help``."""
-    from pverosion.cli import build_parser
-
-    parser = build_parser()
-    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    return dict(action.choices.items())
 
 
 class CliDirective(Directive):
@@ -201,27 +75,20 @@ class CliDirective(Directive):
         return result
 
 
-def _documented(objects, module_name: str, name: str) -> bool:
-    return f"{module_name}.{name}" in objects or canonical_name(module_name, name) in objects
-
-
-def missing_from_reference(objects) -> list[str]:
-    """Public names (``module.name``) and accessor methods that no page of the reference documents."""
-    missing = [f"{m}.{n}" for m in public_modules() for n in public_names(m) if not _documented(objects, m, n)]
-    accessor = importlib.import_module(ACCESSOR.rsplit(".", 1)[0]).ErosionAccessor
-    missing += [f"{ACCESSOR}.{n}" for n, _ in inspect.getmembers(accessor, inspect.isfunction)
-                if not n.startswith("_") and f"{ACCESSOR}.{n}" not in objects]
-    return missing
-
-
 def check_completeness(app, env) -> None:
-    """Warn about every public function, class, constant, accessor method or CLI subcommand left out."""
+    """Warn about every public name, accessor method, CLI subcommand or example figure left out."""
     for full in missing_from_reference(env.domains["py"].objects):
         logger.warning("API reference: %s is public but not documented", full)
     documented = getattr(env, "pverosion_cli", set())
     for name in cli_parsers():
         if name not in documented:
             logger.warning("CLI reference: subcommand 'pverosion %s' is not documented", name)
+    gallery = app.config.sphinx_gallery_conf
+    for examples, built in zip(gallery["examples_dirs"], gallery["gallery_dirs"]):
+        images = Path(app.srcdir) / built / "images"
+        for script in sorted(Path(examples).glob("*.py")):
+            if not any(images.glob(f"sphx_glr_{script.stem}_[0-9][0-9][0-9].png")):
+                logger.warning("gallery: %s produced no figure", script.name)
 
 
 def _merge_cli(app, env, docnames, other) -> None:
@@ -242,4 +109,4 @@ def setup(app):
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True, "env_version": 1}
 
 
-__all__ = ["check_completeness", "cli_parsers", "generate_api", "missing_from_reference", "public_modules"]
+__all__ = ["CliDirective", "check_completeness", "generate_api", "setup"]
