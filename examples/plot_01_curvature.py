@@ -4,8 +4,8 @@ Curvature of your scan
 
 Per-vertex mean curvature of a scanned surface, coloured as in the papers: blue where the surface
 is concave (H < 0), green where it is flat, red where it is convex (H > 0). The bunny scan is used
-when ``../shared/data/bunny.ply`` is present (or ``$PVEROSION_DATA/bunny.ply``) (it has holes and inward-wound faces: the faces are
-turned outward first), a procedural boulder otherwise.
+when ``../shared/data/bunny.ply`` (or ``$PVEROSION_DATA/bunny.ply``) is present: it has holes and
+inward-wound faces, which are turned outward first. A procedural boulder otherwise.
 """
 
 # %%

@@ -48,16 +48,30 @@ def _is_routine(obj) -> bool:
     return inspect.isroutine(obj) or inspect.isfunction(getattr(obj, "py_func", None))
 
 
-def _assigned_names(module) -> set[str]:
-    """Names bound by an assignment at the top level of the module's source."""
-    tree = ast.parse(inspect.getsource(module))
-    names = set()
-    for node in tree.body:
+def _assignments(module) -> dict[str, bool]:
+    """Names bound by a top-level assignment in the module's source, and whether each one is documented.
+
+    Documented means a ``#:`` comment on the line(s) just above the assignment or a string literal
+    just below it (the conventions autodoc reads).
+    """
+    source = inspect.getsource(module)
+    lines = source.splitlines()
+    tree = ast.parse(source)
+    found = {}
+    for index, node in enumerate(tree.body):
         targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(
             node, ast.AnnAssign) else []
+        if not targets:
+            continue
+        after = tree.body[index + 1] if index + 1 < len(tree.body) else None
+        documented = (isinstance(after, ast.Expr) and isinstance(after.value, ast.Constant)
+                      and isinstance(after.value.value, str))
+        documented |= node.lineno >= 2 and lines[node.lineno - 2].strip().startswith("#:")
         for target in targets:
-            names.update(n.id for n in ast.walk(target) if isinstance(n, ast.Name))
-    return names
+            for name in ast.walk(target):
+                if isinstance(name, ast.Name):
+                    found[name.id] = documented
+    return found
 
 
 def _defined_here(module, name: str) -> bool:
@@ -65,15 +79,22 @@ def _defined_here(module, name: str) -> bool:
     obj = getattr(module, name)
     if inspect.isclass(obj) or _is_routine(obj):
         return getattr(obj, "__module__", None) == module.__name__
-    return name in _assigned_names(module)
+    return name in _assignments(module)
 
 
-def _member_directive(full: str, obj) -> str:
+def _member_directive(module, name: str) -> str:
+    full = f"{module.__name__}.{name}"
+    obj = getattr(module, name)
     if inspect.isclass(obj):
         return f".. autoclass:: {full}\n   :members:\n   :show-inheritance:\n"
     if _is_routine(obj):
         return f".. autofunction:: {full}\n"
-    return f".. autodata:: {full}\n   :no-value:\n"
+    if _assignments(module).get(name):
+        return f".. autodata:: {full}\n   :no-value:\n"
+    # No documentation of its own: autodoc would show the docstring of the value's type. The name is
+    # relative to the module set by the page's automodule.
+    value = repr(obj)
+    return f".. py:data:: {name}\n" + (f"   :value: {value}\n" if len(value) <= 80 and "\n" not in value else "")
 
 
 def canonical_name(module_name: str, name: str) -> str:
@@ -107,7 +128,7 @@ def module_page(module_name: str) -> str:
         lines += [".. rubric:: Re-exported", ""]
         lines += [f"* :py:obj:`{name} <{canonical_name(module_name, name)}>`" for name in reexported] + [""]
     for name in own:
-        lines.append(_member_directive(f"{module_name}.{name}", getattr(module, name)))
+        lines.append(_member_directive(module, name))
     return "\n".join(lines) + "\n"
 
 
