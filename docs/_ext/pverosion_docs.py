@@ -53,7 +53,6 @@ class CliDirective(Directive):
 
     def run(self):
         env = self.state.document.settings.env
-        documented = env.temp_data.setdefault("pverosion_cli", set())
         old = os.environ.get("COLUMNS")
         os.environ["COLUMNS"] = "100"  # argparse wraps to the terminal: fix the width
         try:
@@ -63,23 +62,27 @@ class CliDirective(Directive):
                 section += nodes.title(text=f"pverosion {name}")
                 section += nodes.literal_block(text=sub.format_help().rstrip())
                 result.append(section)
-                documented.add(name)
         finally:
             if old is None:
                 del os.environ["COLUMNS"]
             else:
                 os.environ["COLUMNS"] = old
-        if not hasattr(env, "pverosion_cli"):
-            env.pverosion_cli = set()
-        env.pverosion_cli |= documented
+        _cli_documented(env).setdefault(env.docname, set()).update(cli_parsers())
         return result
+
+
+def _cli_documented(env) -> dict[str, set[str]]:
+    """Subcommands rendered by the ``pverosion-cli`` directive, by the document rendering them."""
+    if not hasattr(env, "pverosion_cli"):
+        env.pverosion_cli = {}
+    return env.pverosion_cli
 
 
 def check_completeness(app, env) -> None:
     """Warn about every public name, accessor method, CLI subcommand or example figure left out."""
     for full in missing_from_reference(env.domains["py"].objects):
         logger.warning("API reference: %s is public but not documented", full)
-    documented = getattr(env, "pverosion_cli", set())
+    documented = set().union(*_cli_documented(env).values())
     for name in cli_parsers():
         if name not in documented:
             logger.warning("CLI reference: subcommand 'pverosion %s' is not documented", name)
@@ -92,12 +95,11 @@ def check_completeness(app, env) -> None:
 
 
 def _merge_cli(app, env, docnames, other) -> None:
-    env.pverosion_cli = getattr(env, "pverosion_cli", set()) | getattr(other, "pverosion_cli", set())
+    _cli_documented(env).update({doc: names for doc, names in _cli_documented(other).items() if doc in docnames})
 
 
 def _purge_cli(app, env, docname) -> None:
-    if docname == "cli":
-        env.pverosion_cli = set()
+    _cli_documented(env).pop(docname, None)
 
 
 def setup(app):
