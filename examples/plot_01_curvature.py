@@ -31,5 +31,5 @@ limit = float(np.percentile(np.abs(out["mean_curvature"]), 98))
 plotter = pv.Plotter()
 plotter.add_mesh(out, scalars="mean_curvature", cmap=pverosion.CURVATURE_CMAP, clim=(-limit, limit),
                  scalar_bar_args={"title": "mean curvature H"})
-plotter.view_isometric()
+plotter.view_xy()  # the bunny scan stands along +y
 plotter.show()
