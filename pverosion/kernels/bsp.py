@@ -244,7 +244,7 @@ class BSPTree:
         return int(depth.max())
 
     def locate(self, points) -> tuple[np.ndarray, np.ndarray]:
-        """Material id of the leaf containing each point, and the smallest |d| met on the way.
+        """Material id of the leaf containing each point, and the smallest ``|d|`` met on the way.
 
         Parameters
         ----------

@@ -18,7 +18,7 @@ models:
     interpolated (and made unit length) in between. No other vertex moves.
 
 ``"sediment"`` (Skorkovská thesis, ch. 8, eqs. 8.2–8.7)
-    Each colliding particle sees the shear rate θ = |v_t| / d (tangential
+    Each colliding particle sees the shear rate ``θ = |v_t| / d`` (tangential
     velocity over its distance to the contact face), the shear stress
     τ = K θ^m and the erosion rate ε = k (τ - τ_c)^a. Above τ_c the particle
     picks up ``ε dt π r²`` of volume from the contact face's vertices (those
@@ -565,5 +565,5 @@ class HydraulicSolver(GuardedMeshSolver):
         _apply_volumes(self.points, self.faces, *self._incidence, self.pending, cap, self.displacement)
 
     def conservation_error(self) -> float:
-        """|eroded - carried - deposited - drained| of the sediment model (0 for exact bookkeeping)."""
+        """``|eroded - carried - deposited - drained|`` of the sediment model (0 for exact bookkeeping)."""
         return abs(self.eroded - float(self.fluid.sediment.sum()) - self.deposited - float(self.fluid.drained_sediment))

@@ -52,11 +52,11 @@ class MaterialSample:
 
 @dataclass(frozen=True)
 class Gradual:
-    """Hardness falling off with the distance |d| from the splitting surfaces.
+    """Hardness falling off with the distance ``|d|`` from the splitting surfaces.
 
     ``hardness = h_material * (floor + (1 - floor) * exp(-|d| / scale))``: the
     full hardness on the surfaces, softer farther away, never below
-    ``floor * h_material``. Monotone non-increasing in |d|.
+    ``floor * h_material``. Monotone non-increasing in ``|d|``.
 
     Parameters
     ----------
@@ -76,7 +76,7 @@ class Gradual:
             raise ValueError(f"floor must be in (0, 1]; got {self.floor!r}")
 
     def factor(self, distance: np.ndarray) -> np.ndarray:
-        """Multiplier (N,) of the hardness at distances |d| (N,)."""
+        """Multiplier (N,) of the hardness at distances ``|d|`` (N,)."""
         return self.floor + (1.0 - self.floor) * np.exp(-np.abs(distance) / self.scale)
 
 
@@ -159,7 +159,7 @@ class BSPMaterials(MaterialField):
     hardness : array_like, shape (M,)
         Hardness of each material id found in the leaves.
     gradual : Gradual, optional
-        Softer farther from the splitting surfaces (the smallest |d| met on the
+        Softer farther from the splitting surfaces (the smallest ``|d|`` met on the
         point's path through the tree).
     stats : BSPStats, optional
         Build statistics, for trees made by :func:`bsp_from_volume`.

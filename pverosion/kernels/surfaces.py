@@ -72,7 +72,7 @@ class ImplicitSurface:
 
 @dataclass(frozen=True)
 class Plane(ImplicitSurface):
-    """Plane ``n . x + offset = 0``; ``normal`` is normalised, so ``|d|`` is the distance."""
+    """Plane ``n · x + offset = 0``; ``normal`` is normalised, so ``|d|`` is the distance."""
 
     normal: tuple = (0.0, 0.0, 1.0)
     offset: float = 0.0

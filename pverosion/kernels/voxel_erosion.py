@@ -65,7 +65,7 @@ class ErosionParameters:
     density : float, default: 1000.0
         Water density rho (kg/m³).
     capacity : float, default: 0.7
-        k in C_hat = min(k |u|, c_max) (cohesionless), per m/s.
+        k in ``C_hat = min(k |u|, c_max)`` (cohesionless), per m/s.
     saturation : float, default: 0.5
         c_max, the most dissolved material a water cell holds; above it the cell becomes material.
     time_scale : float, default: 1.0
