@@ -285,12 +285,12 @@ def main(argv: list[str] | None = None) -> int:
     (the run stops within one step; completed steps of a ``--series`` stay
     readable and nothing partial is written).
     """
-    from pverosion.filters.base import deferred_interrupt
-
     argv = sys.argv[1:] if argv is None else list(argv)
     command = next((arg for arg in argv if not arg.startswith("-")), None)
     parser = build_parser(stages={command})  # only the chosen stage's filter module is imported
     args = parser.parse_args(argv)
+    from pverosion.filters.base import deferred_interrupt  # after --help, which needs no VTK
+
     where = f"pverosion {args.command}"
     def show(message, category, *_args, **_kwargs):
         print(f"{where}: warning: {message}", file=sys.stderr)
