@@ -11,8 +11,10 @@ import sys
 import time
 from pathlib import Path
 
+from pverosion import paraview_setup
 from pverosion.filters import ALL_FILTERS
 from pverosion.filters.base import ErosionFilter
+
 
 __all__ = ["build_parser", "main"]
 
@@ -51,6 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
     batch.add_argument("--threads-per-job", type=int, metavar="K",
                        help="numba threads per job (default: cores / workers locally, 1 on a remote scheduler)")
     batch.add_argument("--serial", action="store_true", help="run the jobs one by one in this process, without Dask")
+    paraview_setup.add_parser(sub)
     for filter_cls in ALL_FILTERS:
         cmd = sub.add_parser(filter_cls.command_name(), help=filter_cls.LABEL, description=filter_cls.__doc__,
                              formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -199,6 +202,8 @@ def main(argv: list[str] | None = None) -> int:
             _run_demo(args)
         elif args.command == "batch":
             return _run_batch(args)
+        elif args.command == "paraview":
+            return args.func(args)
         else:
             _run_stage(args)
     except (ValueError, TypeError, FileNotFoundError, OSError, RuntimeError) as exc:
