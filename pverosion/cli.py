@@ -15,7 +15,6 @@ from pverosion import paraview_setup
 from pverosion.filters import ALL_FILTERS
 from pverosion.filters.base import ErosionFilter
 
-
 __all__ = ["build_parser", "main"]
 
 

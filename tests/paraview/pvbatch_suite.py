@@ -112,16 +112,14 @@ def main():
     sampler.UpdatePipeline()
     check(np.array_equal(point_array(fetch(sampler), "material_id"), ids), "sampling the saved tree")
 
-    floor = pvs.PythonCalculator(Input=wavelet, Expression="(inputs[0].Points[:, 2] < 0).astype(float)",
-                                 ArrayName="material_amount")
-    spring = pvs.PythonCalculator(Input=floor, ArrayName="source",
-                                  Expression="((inputs[0].Points[:, 2] > 3) & (inputs[0].Points[:, 0] < -4))"
-                                             ".astype(float)")
+    floor = pvs.Calculator(Input=wavelet, Function="coordsZ < 0", ResultArrayName="material_amount")
+    spring = pvs.Calculator(Input=floor, Function="(coordsZ > 3) and (coordsX < -4)", ResultArrayName="source")
     voxel = make["voxel"](Input=spring, Iterations=3)
     voxel.UpdatePipeline(3.0)
     state = block(fetch(voxel), "state")
     amount = point_array(state, "material_amount")
     check(amount.min() >= 0 and amount.max() <= 1 and amount.sum() > 0, "voxel state keeps material in [0, 1]")
+    check(block(fetch(voxel), "surface").GetNumberOfPoints() > 0, "voxel erosion extracts the material surface")
 
     shards = make["shard-graph"](Input=sphere(1.0), Cells=30)
     shards.UpdatePipeline()
