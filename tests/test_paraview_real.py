@@ -14,31 +14,55 @@ from pathlib import Path
 
 import pytest
 
-from pverosion.paraview_setup import plugin_dir
+from pverosion.paraview_setup import host_requirements, plugin_dir, probe
 
 ROOT = Path(__file__).resolve().parents[1]
 SUITE = ROOT / "tests" / "paraview" / "pvbatch_suite.py"
-PVBATCH = shutil.which("pvbatch")
+TRACE = ROOT / "examples" / "paraview" / "weathering_scene.py"
+PVBATCH, PVPYTHON = shutil.which("pvbatch"), shutil.which("pvpython")
 SITE = os.environ.get("PVEROSION_PARAVIEW_SITE")
 
-pytestmark = [
-    pytest.mark.skipif(PVBATCH is None, reason="ParaView's pvbatch is not on PATH (Debian/Ubuntu: apt-get install "
-                                               "paraview python3-paraview xvfb)"),
-    pytest.mark.skipif(not SITE, reason="PVEROSION_PARAVIEW_SITE is not set: run `pverosion paraview setup "
-                                        "--pvpython pvpython --target DIR` and set it to DIR"),
-]
+needs_paraview = pytest.mark.skipif(PVBATCH is None or PVPYTHON is None,
+                                    reason="ParaView's pvbatch/pvpython are not on PATH (Debian/Ubuntu: apt-get "
+                                           "install paraview python3-paraview xvfb)")
+needs_site = pytest.mark.skipif(not SITE, reason="PVEROSION_PARAVIEW_SITE is not set: run `pverosion paraview "
+                                                 "setup --pvpython pvpython --target DIR` and set it to DIR")
 
 
-def test_plugin_in_pvbatch(tmp_path):
+def _pvbatch(script: Path, out: Path) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV")}
     env["PYTHONPATH"] = f"{ROOT}{os.pathsep}{SITE}"
     env["PV_PLUGIN_PATH"] = str(plugin_dir())
     env["NUMBA_CACHE_DIR"] = str(Path(SITE) / "numba-cache")
-    command = [PVBATCH, str(SUITE), str(tmp_path)]
+    command = [PVBATCH, str(script), str(out)]
     if shutil.which("xvfb-run") and not env.get("DISPLAY"):
         command = ["xvfb-run", "-a", *command]
-    proc = subprocess.run(command, capture_output=True, text=True, env=env, cwd=tmp_path)
-    output = proc.stdout + proc.stderr
-    assert proc.returncode == 0 and "PVEROSION-PARAVIEW-OK" in proc.stdout, output[-6000:]
+    return subprocess.run(command, capture_output=True, text=True, env=env, cwd=out)
+
+
+@needs_paraview
+def test_probe_reads_paraviews_own_python_and_vtk():
+    host = probe(PVPYTHON)
+    script = "import numpy, vtkmodules.vtkCommonCore as c; print(numpy.__version__, c.vtkVersion.GetVTKVersion())"
+    numpy_version, vtk_version = subprocess.run([PVPYTHON, "-c", script], capture_output=True, text=True,
+                                                check=True).stdout.split()[-2:]
+    assert (host["numpy"], host["vtk"]) == (numpy_version, vtk_version)
+    assert f"numpy=={numpy_version}" in host_requirements(host)
+
+
+@needs_paraview
+@needs_site
+def test_plugin_in_pvbatch(tmp_path):
+    proc = _pvbatch(SUITE, tmp_path)
+    assert proc.returncode == 0 and "PVEROSION-PARAVIEW-OK" in proc.stdout, (proc.stdout + proc.stderr)[-6000:]
     assert (tmp_path / "weathering.png").stat().st_size > 0
     assert not (tmp_path / "None").exists()
+
+
+@needs_paraview
+@needs_site
+def test_sample_trace_runs(tmp_path):
+    proc = _pvbatch(TRACE, tmp_path)
+    assert proc.returncode == 0, (proc.stdout + proc.stderr)[-6000:]
+    written = sorted(p.name for p in tmp_path.glob("weathering_*.png"))
+    assert written == ["weathering_curvature.png"] + [f"weathering_step_{n}.png" for n in (0, 100, 25, 50)]
