@@ -39,7 +39,7 @@ print({_MARKER!r} + json.dumps({{
     "numpy": numpy.__version__, "vtk": vtkVersion.GetVTKVersion(),
     "getargspec": hasattr(inspect, "getargspec")}}), flush=True)
 """
-_SITECUSTOMIZE = '''"""Written by ``pverosion paraview setup``: lets ParaView <= 5.11 load Python plugins on Python >= 3.11.
+_SITECUSTOMIZE = '''"""Written by ``pverosion paraview setup``: ParaView <= 5.11 loads Python plugins on Python >= 3.11.
 
 ParaView's plugin loader (paraview.detail.pythonalgorithm) imports inspect.getargspec, which Python 3.11
 removed; it only reads ``.args``, which inspect.getfullargspec has too. The sitecustomize module this one

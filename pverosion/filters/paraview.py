@@ -43,7 +43,7 @@ ADVANCED: dict[str, frozenset[str]] = {
     "voxel": frozenset({"tolerance", "viscosity", "advection", "extraction", "time_scale"}),
     "shard-graph": frozenset({"jitter", "radius_gradient", "tilt", "seed"}),
     "shards": frozenset({"jitter", "radius_gradient", "tilt", "seed", "k_solid", "k_air", "k_res", "k_dmg",
-                              "k_break", "break_probability", "complete_absorption", "spread"}),
+                         "k_break", "break_probability", "complete_absorption", "spread"}),
     "repair": frozenset({"tolerance"}),
     "boolean": frozenset({"tolerance"}),
 }
@@ -81,7 +81,8 @@ def _property_xml(p: Param, command: str, advanced: bool) -> str:
     domain = ""
     if p.minimum is not None or p.maximum is not None:
         kind = "IntRangeDomain" if p.kind is int else "DoubleRangeDomain"
-        bounds = "".join(f" {k}={quoteattr(str(v))}" for k, v in (("min", p.minimum), ("max", p.maximum)) if v is not None)
+        limits = (("min", p.minimum), ("max", p.maximum))
+        bounds = "".join(f" {k}={quoteattr(str(v))}" for k, v in limits if v is not None)
         domain = f'<{kind} name="range"{bounds}/>'
     return f"<{tag} {head} number_of_elements=\"1\" default_values={quoteattr(str(p.default))}>{domain}{doc}</{tag}>"
 

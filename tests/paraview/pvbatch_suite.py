@@ -79,7 +79,8 @@ def main():
     print("filters:", ", ".join(names), flush=True)
     make = {command: getattr(pvs, name) for command, name in FILTERS.items()}
 
-    # 2. every filter with its default options on small inputs (thresholds, emitter and tree file are required;\n    #    fewer steps or cells keep the run short)
+    # 2. every filter with its default options on small inputs (thresholds, emitter and tree file are required;
+    #    fewer steps or cells keep the run short)
     ball = sphere(0.5)
     curv = make["curvature"](Input=ball)
     curv.UpdatePipeline()
