@@ -50,9 +50,9 @@ def block(data, name):
     raise AssertionError(f"no block {name!r}")
 
 
-def point_array(data, name):
-    arr = dsa.WrapDataObject(data).PointData[name]
-    check(isinstance(arr, np.ndarray), f"output has no point array {name!r}")
+def point_array(data, name, association="PointData"):
+    arr = getattr(dsa.WrapDataObject(data), association)[name]
+    check(isinstance(arr, np.ndarray), f"output has no {association} array {name!r}")
     return np.asarray(arr)
 
 
@@ -124,7 +124,7 @@ def main():
 
     shards = make["shard-graph"](Input=sphere(1.0), Cells=30)
     shards.UpdatePipeline()
-    cell_ids = point_array(block(fetch(shards), "shards"), "cell_id")
+    cell_ids = point_array(block(fetch(shards), "shards"), "cell_id", "CellData")
     check(len(np.unique(cell_ids)) == 30, f"30 shards; got {len(np.unique(cell_ids))}")
 
     freeze = make["shards"](Input=sphere(1.0), Cells=30)
