@@ -6,7 +6,17 @@ a PyVista accessor (``mesh.erosion.curvature()``), the ``pverosion`` command lin
 and ParaView plugins.
 """
 
-from pverosion.api import (
+import sys as _sys
+
+from vtkmodules.vtkCommonCore import vtkOutputWindow
+
+# Importing PyVista replaces VTK's output window to send VTK's messages to Python's logging module. In
+# pvpython, pvbatch and ParaView's Python shell, Python's own output and ParaView's errors go through that
+# window, so the replacement would silence them: there, keep the host's window.
+_host_window = vtkOutputWindow.GetInstance()
+_keep_host_window = "paraview" in _sys.modules or type(_sys.stdout).__name__ == "vtkPythonStdStreamCaptureHelper"
+
+from pverosion.api import (  # noqa: E402
     boolean,
     curvature,
     freeze_thaw,
@@ -18,9 +28,13 @@ from pverosion.api import (
     voxel_erosion,
     weather,
 )
-from pverosion.kernels.mesh_repair import CoplanarOverlapError
-from pverosion.kernels.validation import InvalidMeshError
-from pverosion.plotting import CURVATURE_CMAP, curvature_cmap
+from pverosion.kernels.mesh_repair import CoplanarOverlapError  # noqa: E402
+from pverosion.kernels.validation import InvalidMeshError  # noqa: E402
+from pverosion.plotting import CURVATURE_CMAP, curvature_cmap  # noqa: E402
+
+if _keep_host_window:
+    vtkOutputWindow.SetInstance(_host_window)
+del _host_window, _keep_host_window
 
 __version__ = "0.1.0"
 

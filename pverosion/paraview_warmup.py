@@ -8,12 +8,10 @@ per filter.
 
 from __future__ import annotations
 
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-from vtkmodules.vtkCommonCore import vtkOutputWindow
 from vtkmodules.vtkCommonDataModel import vtkImageData
 from vtkmodules.vtkFiltersSources import vtkSphereSource
 from vtkmodules.vtkImagingCore import vtkRTAnalyticSource
@@ -72,15 +70,13 @@ def small_inputs(command: str) -> tuple:
     return (_sphere(1.0),)
 
 
-def warm_up(stream=sys.stdout) -> None:
+def warm_up() -> None:
     """Run every filter once on :func:`small_inputs` with :data:`SMALL_OPTIONS`.
 
     The material sampler reads the BSP tree the materials filter saved.
     """
-    window = vtkOutputWindow.GetInstance()
     from pverosion.filters import ALL_FILTERS
 
-    vtkOutputWindow.SetInstance(window)  # importing PyVista replaced it
     with tempfile.TemporaryDirectory() as tmp:
         tree = str(Path(tmp) / "tree.json")
         for cls in ALL_FILTERS:
@@ -89,7 +85,7 @@ def warm_up(stream=sys.stdout) -> None:
             if cls.command_name() in ("materials", "sample-materials"):
                 options["tree_file"] = tree
             cls(**options).run(*small_inputs(cls.command_name()))
-            print(f"  {cls.command_name()}: ready ({time.perf_counter() - start:.0f} s)", file=stream, flush=True)
+            print(f"  {cls.command_name()}: ready ({time.perf_counter() - start:.0f} s)", flush=True)
 
 
 if __name__ == "__main__":

@@ -29,14 +29,20 @@ needs_site = pytest.mark.skipif(not SITE, reason="PVEROSION_PARAVIEW_SITE is not
                                                  "setup --pvpython pvpython --target DIR` and set it to DIR")
 
 
-def _pvbatch(script: Path, out: Path) -> subprocess.CompletedProcess:
+def _environment() -> dict:
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV")}
     env["PYTHONPATH"] = f"{ROOT}{os.pathsep}{SITE}"
     env["PV_PLUGIN_PATH"] = str(plugin_dir())
     env["NUMBA_CACHE_DIR"] = str(Path(SITE) / "numba-cache")
+    return env
+
+
+def _pvbatch(script: Path, out: Path) -> subprocess.CompletedProcess:
+    env = _environment()
     command = [PVBATCH, str(script), str(out)]
     if shutil.which("xvfb-run") and not env.get("DISPLAY"):
-        command = ["xvfb-run", "-a", *command]
+        # a display number of our own (-a alone races with other xvfb-runs starting at :99), 24-bit colour
+        command = ["xvfb-run", "-a", "-n", str(100 + os.getpid() % 800), "-s", "-screen 0 1024x768x24", *command]
     return subprocess.run(command, capture_output=True, text=True, env=env, cwd=out)
 
 
@@ -48,6 +54,16 @@ def test_probe_reads_paraviews_own_python_and_vtk():
                                                 check=True).stdout.split()[-2:]
     assert (host["numpy"], host["vtk"]) == (numpy_version, vtk_version)
     assert f"numpy=={numpy_version}" in host_requirements(host)
+
+
+@needs_paraview
+@needs_site
+def test_importing_pverosion_keeps_pvpython_audible():
+    # pvpython prints Python's output and tracebacks through VTK's output window, which PyVista's import replaces
+    script = "import pverosion; print('still visible'); raise ValueError('boom')"
+    proc = subprocess.run([PVPYTHON, "-c", script], capture_output=True, text=True, env=_environment())
+    assert "still visible" in proc.stdout
+    assert "ValueError: boom" in proc.stderr and proc.returncode != 0
 
 
 @needs_paraview

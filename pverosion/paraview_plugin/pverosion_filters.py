@@ -18,17 +18,10 @@ from types import SimpleNamespace
 from paraview.modules.vtkRemotingServerManager import vtkSMSettings
 from paraview.modules.vtkRemotingViews import vtkSMTransferFunctionPresets
 from paraview.util.vtkAlgorithm import smdomain, smhint, smproperty, smproxy
-from vtkmodules.vtkCommonCore import vtkOutputWindow
 
-# Importing pverosion imports PyVista, which sends every VTK message to Python's logging module by replacing
-# the output window; keep ParaView's, so that errors and tracebacks still reach its Output Messages and stderr.
-_output_window = vtkOutputWindow.GetInstance()
-try:
-    from pverosion.filters import ALL_FILTERS
-    from pverosion.filters.paraview import curvature_settings, make_proxy
-    from pverosion.plotting import CURVATURE_CMAP
-finally:
-    vtkOutputWindow.SetInstance(_output_window)
+from pverosion.filters import ALL_FILTERS
+from pverosion.filters.paraview import curvature_settings, make_proxy
+from pverosion.plotting import CURVATURE_CMAP
 
 _DECORATORS = SimpleNamespace(smproxy=smproxy, smproperty=smproperty, smdomain=smdomain, smhint=smhint)
 
