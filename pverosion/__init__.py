@@ -11,6 +11,7 @@ matplotlib, load on first use of a name below.
 
 from __future__ import annotations
 
+import sys
 from importlib import import_module
 from typing import TYPE_CHECKING
 
@@ -58,11 +59,27 @@ if TYPE_CHECKING:
     from pverosion.plotting import CURVATURE_CMAP, curvature_cmap
 
 
+def _in_paraview() -> bool:
+    """True inside pvpython, pvbatch or ParaView's Python shell."""
+    return "paraview" in sys.modules or type(sys.stdout).__name__ == "vtkPythonStdStreamCaptureHelper"
+
+
 def __getattr__(name: str):
     module = _LAZY.get(name)
     if module is None:
         raise AttributeError(f"module 'pverosion' has no attribute {name!r}")
-    value = getattr(import_module(module), name)
+    if not _in_paraview():
+        value = getattr(import_module(module), name)
+    else:
+        # Importing PyVista replaces VTK's output window to send VTK's messages to Python's logging; in
+        # ParaView, Python's own output and ParaView's errors go through that window, so keep the host's.
+        from vtkmodules.vtkCommonCore import vtkOutputWindow
+
+        host_window = vtkOutputWindow.GetInstance()
+        try:
+            value = getattr(import_module(module), name)
+        finally:
+            vtkOutputWindow.SetInstance(host_window)
     globals()[name] = value
     return value
 

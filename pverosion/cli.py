@@ -15,6 +15,7 @@ from collections.abc import Collection
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from pverosion import paraview_setup
 from pverosion._stages import STAGE_INDEX, load_stage
 
 if TYPE_CHECKING:
@@ -70,6 +71,7 @@ def build_parser(*, stages: Collection[str] | None = None) -> argparse.ArgumentP
     warmup.add_argument("stages", nargs="*", metavar="STAGE",
                         help=f"stages to compile (default: all): {', '.join(s.command for s in STAGE_INDEX)}")
     warmup.add_argument("--processes", type=int, metavar="N", help="parallel processes (default: one per core)")
+    paraview_setup.add_parser(sub)
     for stage in STAGE_INDEX:
         if stages is not None and stage.command not in stages:
             sub.add_parser(stage.command, help=stage.label)
@@ -304,6 +306,8 @@ def main(argv: list[str] | None = None) -> int:
                 _run_warmup(args)
             elif args.command == "batch":
                 return _run_batch(args)
+            elif args.command == "paraview":
+                return args.func(args)
             else:
                 _run_stage(args)
     except KeyboardInterrupt:

@@ -13,6 +13,7 @@ from pverosion.io import atomic_path
 
 __all__ = [
     "CURVATURE_CMAP",
+    "CURVATURE_COLOURS",
     "curvature_cmap",
     "plot_slices",
     "plot_statistics",
@@ -24,6 +25,9 @@ __all__ = [
 CURVATURE_CMAP = "pverosion_curvature"
 """Name of the registered blue-green-red colour map (Skorkovská 2019, Figure 2)."""
 
+CURVATURE_COLOURS = ((0.0, 0.0, 1.0), (0.0, 0.8, 0.0), (1.0, 0.0, 0.0))
+"""RGB colours of the curvature colour map at its low end, middle (H = 0) and high end."""
+
 
 def curvature_cmap() -> LinearSegmentedColormap:
     """The curvature colour map: blue for H < 0, green for H = 0, red for H > 0.
@@ -34,7 +38,7 @@ def curvature_cmap() -> LinearSegmentedColormap:
     limits symmetric about zero so that green marks flat regions.
     """
     if CURVATURE_CMAP not in matplotlib.colormaps:
-        cmap = LinearSegmentedColormap.from_list(CURVATURE_CMAP, [(0.0, 0.0, 1.0), (0.0, 0.8, 0.0), (1.0, 0.0, 0.0)])
+        cmap = LinearSegmentedColormap.from_list(CURVATURE_CMAP, CURVATURE_COLOURS)
         matplotlib.colormaps.register(cmap)
     return matplotlib.colormaps[CURVATURE_CMAP]
 
