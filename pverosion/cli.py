@@ -13,6 +13,7 @@ from pathlib import Path
 
 from pverosion.filters import ALL_FILTERS
 from pverosion.filters.base import ErosionFilter
+from pverosion.viewer import add_view_command, run_view
 
 __all__ = ["build_parser", "main"]
 
@@ -51,6 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     batch.add_argument("--threads-per-job", type=int, metavar="K",
                        help="numba threads per job (default: cores / workers locally, 1 on a remote scheduler)")
     batch.add_argument("--serial", action="store_true", help="run the jobs one by one in this process, without Dask")
+    add_view_command(sub)
     for filter_cls in ALL_FILTERS:
         cmd = sub.add_parser(filter_cls.command_name(), help=filter_cls.LABEL, description=filter_cls.__doc__,
                              formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -199,6 +201,8 @@ def main(argv: list[str] | None = None) -> int:
             _run_demo(args)
         elif args.command == "batch":
             return _run_batch(args)
+        elif args.command == "view":
+            return run_view(args)
         else:
             _run_stage(args)
     except (ValueError, TypeError, FileNotFoundError, OSError, RuntimeError) as exc:
