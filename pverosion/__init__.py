@@ -20,7 +20,9 @@ from pverosion.api import (
 )
 from pverosion.kernels.mesh_repair import CoplanarOverlapError
 from pverosion.kernels.validation import InvalidMeshError
+from pverosion.live import interactive
 from pverosion.plotting import CURVATURE_CMAP, curvature_cmap
+from pverosion.viewer import view
 
 __version__ = "0.1.0"
 
@@ -36,10 +38,12 @@ __all__ = [
     "curvature_cmap",
     "freeze_thaw",
     "hydraulic_erosion",
+    "interactive",
     "materials_from_volume",
     "repair",
     "sample_materials",
     "shard_graph",
+    "view",
     "voxel_erosion",
     "weather",
 ]

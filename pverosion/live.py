@@ -30,6 +30,10 @@ from pverosion.plotting import _offscreen_pyvista, scalar_style
 
 __all__ = ["STAGES", "LiveSession", "interactive"]
 
+
+class _Halt(Exception):
+    """Raised after an iteration to leave the solver's run() when the session pauses."""
+
 STAGES = ("hydraulic", "weather")
 """Stages that run live."""
 
@@ -90,10 +94,14 @@ class LiveSession:
             raise ValueError(f"source_radius must be > 0; got {source_radius!r}")
         self.source_radius = float(source_radius)
         self._speed = speed
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()  # held while the solver steps
         self._wake = threading.Condition(self._lock)
+        self._picks_lock = threading.Lock()
+        self._picks: list[np.ndarray] = []
+        self._callbacks: list = []
         self._thread: threading.Thread | None = None
         self._stop = False
+        self._halt = False
         self.paused = True
         self.error: BaseException | None = None
         self.updates = 0
@@ -101,6 +109,7 @@ class LiveSession:
         self.mesh = pv.PolyData()
         self.particles = pv.PolyData()
         self._actor = None
+        self._drawn: tuple | None = (None, 0)
         self._build()
         self._publish()
         self._draw()
@@ -112,6 +121,7 @@ class LiveSession:
         self.source: np.ndarray | None = None
         self.brushes: list[np.ndarray] = []
         self._travel = 0.0
+        self._primed = False
         if self.stage == "hydraulic":
             self.solver = HydraulicSolver(points, faces, fluid=FluidParameters(radius=self.radius), **self._options)
             self._gravity = np.asarray(self.solver.fluid.params.gravity, dtype=np.float64)
@@ -119,6 +129,7 @@ class LiveSession:
                                   radius=self.source_radius, rate=1.0).lattice(2.0 * self.radius)
         else:
             self.solver = WeatheringSolver(points, faces, erodibility=self._brushed, **self._options)
+        self._chunk = max(self.solver.check_every, 1)  # run() checks the mesh at its last step: keep the period
         self._version = 0
         self._shown = -1
 
@@ -146,20 +157,43 @@ class LiveSession:
         if len(layer):
             fluid.add_particles(layer, np.broadcast_to(speed * down, layer.shape))
 
-    def step(self, iterations: int = 1) -> None:
-        """Run ``iterations`` iterations now, in the calling thread (with the worker paused)."""
-        for _ in range(int(iterations)):
-            with self._lock:
-                self._advance()
+    def _apply_picks(self) -> None:
+        """Move the source / add the brushes picked since the last iteration (the solver is not stepping)."""
+        with self._picks_lock:
+            picks, self._picks = self._picks, []
+        for point in picks:
+            if self.stage == "hydraulic":
+                up = -self._gravity / np.linalg.norm(self._gravity)
+                self.source = point + 8.0 * self.radius * up
+                self._travel = 2.0 * self.radius  # release the first layer at the next iteration
+            else:
+                self.brushes.append(point)
 
-    def _advance(self) -> None:
+    def _before_steps(self) -> None:
+        self._apply_picks()
+        if not self._primed and self.stage == "hydraulic":
+            self._pour()
+        self._primed = True
+
+    def _after_step(self, solver) -> None:
+        """After every accepted iteration: take the picks, pour, publish the state; leave run() when asked to."""
+        self._apply_picks()
         if self.stage == "hydraulic":
             self._pour()
-        self.solver.run(1)
         self._publish()
+        for callback in self._callbacks:
+            callback(solver.step_count)
+        if self._halt:
+            raise _Halt
+
+    def step(self, iterations: int = 1) -> None:
+        """Run ``iterations`` iterations now, in the calling thread (while the worker is paused)."""
+        with self._lock:
+            self._before_steps()
+            self.solver.run(int(iterations), on_step=self._after_step)
 
     def _publish(self) -> None:
-        """Copy the state the view needs (under the lock)."""
+        """Copy the state the view needs."""
         s = self.solver
         cloud = particles_polydata(s) if self.stage == "hydraulic" else pv.PolyData()
         self._state = (s.points.copy(), s.faces.copy(), s.erosion_depth(), s.ids.copy(), cloud, s.step_count)
@@ -173,13 +207,22 @@ class LiveSession:
                         self._wake.wait()
                     if self._stop:
                         return
-                    self._advance()
+                    self._before_steps()
+                    try:
+                        self.solver.run(self._chunk, on_step=self._after_step)
+                    except _Halt:
+                        pass
         except BaseException as exc:  # shown by update_view and re-raised by stop()
             self.error = exc
             self.paused = True
 
+    def on_step(self, callback) -> None:
+        """Call ``callback(step)`` after every iteration, in the thread that runs it."""
+        self._callbacks.append(callback)
+
     def start(self) -> None:
         """Start (or resume) stepping in the background."""
+        self._halt = False
         with self._lock:
             self.paused = False
             self._stop = False
@@ -189,14 +232,17 @@ class LiveSession:
             self._thread.start()
 
     def pause(self) -> None:
-        """Stop stepping after the current iteration (the worker waits)."""
-        with self._lock:
-            self.paused = True
+        """Stop stepping after the current iteration; returns once the worker has stopped."""
+        self.paused = True
+        self._halt = True
+        with self._lock:  # the worker holds it while it steps
+            pass
 
     def stop(self) -> None:
         """End the worker thread; re-raise what made it fail, if anything."""
+        self._stop = True
+        self.pause()
         with self._lock:
-            self._stop = True
             self._wake.notify_all()
         if self._thread is not None:
             self._thread.join()
@@ -205,11 +251,17 @@ class LiveSession:
             raise self.error
 
     def reset(self) -> None:
-        """Back to the input mesh, without water or brushes (the worker keeps its paused/running state)."""
+        """Back to the input mesh, without water or brushes; a running session goes on running."""
+        running = not self.paused
+        self.pause()
         with self._lock:
             self._build()
             self._publish()
+        with self._picks_lock:
+            self._picks = []
         self.update_view()
+        if running:
+            self.start()
 
     @property
     def steps(self) -> int:
@@ -219,16 +271,18 @@ class LiveSession:
     # -- interaction -------------------------------------------------------------------------
 
     def pick(self, point) -> None:
-        """Place the water source above ``point`` (hydraulic) or add a weathering brush at it (weather)."""
+        """Place the water source above ``point`` (hydraulic) or add a weathering brush at it (weather).
+
+        Taken before the next iteration (at once when the solver is not stepping).
+        """
         point = np.asarray(point, dtype=np.float64).reshape(3)
-        with self._lock:
-            if self.stage == "hydraulic":
-                up = -self._gravity / np.linalg.norm(self._gravity)
-                self.source = point + 8.0 * self.radius * up
-                self._travel = 2.0 * self.radius  # release the first layer at the next iteration
-            else:
-                self.brushes.append(point)
-        self._draw_source()
+        with self._picks_lock:
+            self._picks.append(point)
+        if self._lock.acquire(blocking=False):
+            try:
+                self._apply_picks()
+            finally:
+                self._lock.release()
 
     def pick_screen(self, x: float, y: float) -> np.ndarray | None:
         """Pick the surface at display pixel (x, y) as a click does; return the point (None: missed)."""
@@ -269,6 +323,7 @@ class LiveSession:
         if self._actor is not None:
             self._actor.mapper.scalar_range = scalar_style("erosion_depth", np.append(depth, 0.0))["clim"]
         self.plotter.add_text(self._label(step), position="upper_left", font_size=10, name="live_label")
+        self._draw_source()
         self.updates += 1
         if render:
             self.plotter.render()
@@ -310,6 +365,11 @@ class LiveSession:
         return f"live_{self.stage}_{self.steps:05d}.{'vtm' if self.stage == 'hydraulic' else 'vtp'}"
 
     def _draw_source(self) -> None:
+        """Show the water source's disc or the brushes when they changed."""
+        key = (None if self.source is None else tuple(self.source), len(self.brushes))
+        if key == self._drawn:
+            return
+        self._drawn = key
         if self.stage == "hydraulic" and self.source is not None:
             disc = pv.Disc(center=self.source, inner=0.0, outer=self.source_radius, normal=-self._gravity, c_res=24)
             self.plotter.add_mesh(disc, color="#2f6fd6", opacity=0.5, name="live_source", reset_camera=False)
@@ -317,6 +377,8 @@ class LiveSession:
             spheres = pv.MultiBlock([pv.Sphere(radius=self.source_radius, center=c) for c in self.brushes])
             self.plotter.add_mesh(spheres.combine(), color="orange", style="wireframe", opacity=0.3,
                                   name="live_source", reset_camera=False)
+        else:
+            self.plotter.remove_actor("live_source", render=False)
 
 
 def interactive(mesh: pv.PolyData, *, stage: str = "hydraulic", off_screen: bool | None = None,
