@@ -109,6 +109,7 @@ class LiveSession:
         self.mesh = pv.PolyData()
         self.particles = pv.PolyData()
         self._actor = None
+        self._text = None
         self._drawn: tuple | None = (None, 0)
         self._build()
         self._publish()
@@ -310,11 +311,11 @@ class LiveSession:
 
     def update_view(self, *, render: bool = True) -> bool:
         """Show the newest published state; return whether it was new."""
-        if self._version == self._shown:
+        version = self._version  # read before the state: the state is at least this new
+        if version == self._shown:
             return False
-        with self._lock:
-            points, faces, depth, ids, cloud, step = self._state
-            self._shown = self._version
+        points, faces, depth, ids, cloud, step = self._state  # replaced whole by the worker, never changed
+        self._shown = version
         surface = pv.PolyData.from_regular_faces(points, faces)
         surface.point_data["erosion_depth"] = depth
         surface.point_data["input_id"] = ids
@@ -322,7 +323,9 @@ class LiveSession:
         self.particles.shallow_copy(cloud)
         if self._actor is not None:
             self._actor.mapper.scalar_range = scalar_style("erosion_depth", np.append(depth, 0.0))["clim"]
-        self.plotter.add_text(self._label(step), position="upper_left", font_size=10, name="live_label")
+        if self._text is None:
+            self._text = self.plotter.add_text("", position="upper_left", font_size=10, name="live_label")
+        self._text.SetText(2, self._label(step))  # a new text actor would render the scene once more
         self._draw_source()
         self.updates += 1
         if render:

@@ -228,6 +228,7 @@ class SeriesViewer(pv.Plotter):
         self.playing = False
         self._scalar_buttons: dict[str, object] = {}
         self._slider = None
+        self._labels: dict[int, object] = {}
         self._chart = None
         self._marker = None
         self._callbacks: list[Callable[[int], None]] = []
@@ -289,7 +290,9 @@ class SeriesViewer(pv.Plotter):
             actor = self.add_mesh(layer, name=actor_name, reset_camera=False, render=False, **options)
             actor.SetVisibility(name not in self.hidden)
         label = f"step {step} / {len(self.series) - 1}   t = {self.series.times[step]:g}"
-        self.add_text(label, position="upper_left", font_size=10, name=f"{panel}:label")
+        if panel not in self._labels:
+            self._labels[panel] = self.add_text("", position="upper_left", font_size=10, name=f"{panel}:label")
+        self._labels[panel].SetText(2, label)  # a new text actor would render the scene once more
 
     def _colour_options(self, layer: pv.DataSet) -> dict:
         name = self.scalars
