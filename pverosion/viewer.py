@@ -605,6 +605,8 @@ def add_view_command(sub) -> None:
                      help="write a ParaView script or state that opens PATH with the same colour coding")
     cmd.add_argument("--live", choices=STAGES, help="erode the surface PATH interactively (click to place water "
                      "or to brush weathering)")
+    cmd.add_argument("--web", type=int, metavar="PORT", help="serve the viewer as a web page on 127.0.0.1:PORT "
+                     "(needs pverosion[view])")
     cmd.add_argument("--window-size", type=int, nargs=2, default=(1024, 768), metavar=("W", "H"))
 
 
@@ -641,7 +643,12 @@ def run_view(args) -> int:
                 print(f"screenshot -> {out}")
         finally:
             viewer.close()
-    if not exporting:
+    if args.web is not None and not exporting:
+        from pverosion.web import serve
+
+        serve(view(series, scalars=args.scalars, step=args.step or 0, statistic=args.statistic, widgets=False,
+                   off_screen=True, window_size=tuple(args.window_size)), port=args.web)
+    elif not exporting:
         view(series, scalars=args.scalars, step=args.step or 0, compare=args.compare,
              statistic=args.statistic, window_size=tuple(args.window_size)).show()
     return 0
