@@ -17,7 +17,7 @@ __all__ = ["paraview_script", "write_paraview_state"]
 
 
 def _lookup_table(name: str, values) -> tuple[list[float], bool]:
-    """ParaView ``RGBPoints`` (value, r, g, b, ...) of the viewer's colour map for ``values``, and if it is for labels."""
+    """ParaView ``RGBPoints`` (value, r, g, b, ...) of the viewer's colour map for ``values``; whether it is labels."""
     import matplotlib
 
     style = scalar_style(name, values)

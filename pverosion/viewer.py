@@ -229,6 +229,7 @@ class SeriesViewer(pv.Plotter):
         self._scalar_buttons: dict[str, object] = {}
         self._slider = None
         self._labels: dict[int, object] = {}
+        self._timer = None
         self._chart = None
         self._marker = None
         self._callbacks: list[Callable[[int], None]] = []
@@ -402,8 +403,9 @@ class SeriesViewer(pv.Plotter):
     def _add_widgets(self) -> None:
         self.subplot(0, len(self.steps) - 1)
         if len(self.series) > 1:
-            self._slider = self.add_slider_widget(self.set_step, [0, len(self.series) - 1], value=self.step, title="step",
-                                   fmt="%.0f", pointa=(0.35, 0.92), pointb=(0.95, 0.92), interaction_event="always")
+            self._slider = self.add_slider_widget(
+                self.set_step, [0, len(self.series) - 1], value=self.step, title="step", fmt="%.0f",
+                pointa=(0.35, 0.92), pointb=(0.95, 0.92), interaction_event="always")
             self.add_checkbox_button_widget(self.play, value=False, position=(10.0, 10.0), size=30)
             self.add_text("play", position=(45, 15), font_size=9, name="play_label")
         for k, name in enumerate(self.scalar_names[:12]):
@@ -466,9 +468,9 @@ class SeriesViewer(pv.Plotter):
     def play(self, state: bool = True, *, interval: int = 200) -> None:
         """Start (``state=True``) or stop stepping through the series every ``interval`` ms, looping at the end."""
         self.playing = bool(state)
-        if self.playing and self.iren is not None and not self.off_screen:
+        if self.playing and self.iren is not None and not self.off_screen and not self._timer:
             self.iren.add_observer("TimerEvent", lambda *_: self.advance() if self.playing else None)
-            self.iren.create_timer(interval, repeating=True)
+            self._timer = self.iren.create_timer(interval, repeating=True)
 
     def advance(self) -> int:
         """Show the next step (the first after the last); return it."""
