@@ -158,6 +158,10 @@ def _arrays(data: pv.DataSet) -> list[str]:
     return [n for n in names if not n.startswith("vtk")]
 
 
+def _run_name(series: Series, panel: int) -> str:
+    return series.path.stem if series.path is not None else f"run {panel + 1}"
+
+
 def _is_cloud(data: pv.DataSet) -> bool:
     return isinstance(data, pv.PolyData) and data.n_points > 0 and data.n_cells in (0, data.n_verts)
 
@@ -183,7 +187,10 @@ class SeriesViewer(pv.Plotter):
     step : int, default: 0
         Step shown first.
     compare : tuple of two int, optional
-        Show these two steps side by side with linked cameras (no slider).
+        Show these two steps side by side with linked cameras; the slider moves the second.
+    other : Series, optional
+        A second run shown beside the first at the same step (its last step
+        when it is shorter), with linked cameras; the slider moves both.
     statistic : str, optional
         Field-data statistic charted; default: the first ``*eroded_volume``,
         ``*volume``, ... present. ``""`` hides the chart.
@@ -194,10 +201,12 @@ class SeriesViewer(pv.Plotter):
     """
 
     def __init__(self, series: Series, *, scalars: str | None = None, step: int = 0,
-                 compare: tuple[int, int] | None = None, statistic: str | None = None, widgets: bool = True,
-                 **kwargs) -> None:
+                 compare: tuple[int, int] | None = None, other: Series | None = None,
+                 statistic: str | None = None, widgets: bool = True, **kwargs) -> None:
+        if compare is not None and other is not None:
+            raise ValueError("compare two steps or two runs, not both")
         steps = [int(step)] if compare is None else [int(s) for s in compare]
-        if compare is not None:
+        if compare is not None or other is not None:
             kwargs.setdefault("shape", (1, 2))
         kwargs.setdefault("window_size", (1024, 768))
         super().__init__(**kwargs)
@@ -209,7 +218,9 @@ class SeriesViewer(pv.Plotter):
             self.close()
             raise ValueError(problem)
         self.series = series
-        self.steps = steps
+        self.other = other
+        self.panel_series = [series] * len(steps) if other is None else [series, other]
+        self.steps = steps if other is None else [steps[0], min(steps[0], len(other) - 1)]
         first = series[self.steps[0]]
         self.scalar_names: list[str] = []
         for _, data in _layers(first):
@@ -241,7 +252,7 @@ class SeriesViewer(pv.Plotter):
         self.statistic = statistic
         for panel in range(len(self.steps)):
             self._draw(panel)
-        if compare is not None:
+        if len(self.steps) > 1:
             self.link_views()
         self.view_isometric()
         if widgets:
@@ -251,8 +262,8 @@ class SeriesViewer(pv.Plotter):
 
     @property
     def step(self) -> int:
-        """The step shown (the second panel's when comparing)."""
-        return self.steps[-1]
+        """The step of :attr:`series` shown (the second panel's when comparing steps)."""
+        return self.steps[0] if self.other is not None else self.steps[-1]
 
     @property
     def layer_names(self) -> list[str]:
@@ -271,7 +282,8 @@ class SeriesViewer(pv.Plotter):
     def _draw(self, panel: int) -> None:
         self.subplot(0, panel)
         step = self.steps[panel]
-        data = self.series[step]
+        series = self.panel_series[panel]
+        data = series[step]
         for name, layer in _layers(data):
             actor_name = f"{panel}:{name}"
             if isinstance(layer, pv.ImageData):
@@ -290,7 +302,9 @@ class SeriesViewer(pv.Plotter):
                 options["smooth_shading"] = True
             actor = self.add_mesh(layer, name=actor_name, reset_camera=False, render=False, **options)
             actor.SetVisibility(name not in self.hidden)
-        label = f"step {step} / {len(self.series) - 1}   t = {self.series.times[step]:g}"
+        label = f"step {step} / {len(series) - 1}   t = {series.times[step]:g}"
+        if self.other is not None:
+            label = f"{_run_name(series, panel)}: {label}"
         if panel not in self._labels:
             self._labels[panel] = self.add_text("", position="upper_left", font_size=10, name=f"{panel}:label")
         self._labels[panel].SetText(2, label)  # a new text actor would render the scene once more
@@ -331,11 +345,18 @@ class SeriesViewer(pv.Plotter):
             self.remove_actor(f"{base}:volume", render=False)
 
     def set_step(self, step: int, *, render: bool = True) -> None:
-        """Show ``step`` (in the second panel when comparing); reads it from disk if it is not cached."""
+        """Show ``step`` (in the second panel when comparing steps, in both runs when comparing runs).
+
+        Steps are read from disk when they are not cached.
+        """
         step = int(round(step))
         if not 0 <= step < len(self.series):
             raise ValueError(f"step {step} out of range 0..{len(self.series) - 1}")
-        self.steps[-1] = step
+        if self.other is not None:
+            self.steps = [step, min(step, len(self.other) - 1)]
+            self._draw(0)
+        else:
+            self.steps[-1] = step
         self._draw(len(self.steps) - 1)
         if self._slider is not None:
             self._slider.GetRepresentation().SetValue(step)
@@ -488,7 +509,7 @@ class SeriesViewer(pv.Plotter):
 
 
 def view(data, *, scalars: str | None = None, step: int = 0, compare: tuple[int, int] | None = None,
-         statistic: str | None = None, widgets: bool = True, off_screen: bool | None = None,
+         other=None, statistic: str | None = None, widgets: bool = True, off_screen: bool | None = None,
          window_size: tuple[int, int] = (1024, 768)) -> SeriesViewer:
     """Open an erosion result in an interactive viewer.
 
@@ -497,6 +518,8 @@ def view(data, *, scalars: str | None = None, step: int = 0, compare: tuple[int,
     data : str, path-like, pyvista.DataObject, sequence of pyvista.DataObject or Series
         A ``.pvd`` time series, a ``.vtm``/``.vtp``/``.vti`` file, a batch
         output folder, a dataset or a list of datasets (see :class:`Series`).
+    other : same kinds as ``data``, optional
+        A second run to show beside the first (see :class:`SeriesViewer`).
     scalars, step, compare, statistic, widgets
         See :class:`SeriesViewer`.
     off_screen : bool, optional
@@ -523,8 +546,10 @@ def view(data, *, scalars: str | None = None, step: int = 0, compare: tuple[int,
         _offscreen_pyvista()
         off_screen = True
     series = data if isinstance(data, Series) else Series(data)
-    return SeriesViewer(series, scalars=scalars, step=step, compare=compare, statistic=statistic, widgets=widgets,
-                        off_screen=off_screen, window_size=list(window_size))
+    if other is not None and not isinstance(other, Series):
+        other = Series(other)
+    return SeriesViewer(series, scalars=scalars, step=step, compare=compare, other=other, statistic=statistic,
+                        widgets=widgets, off_screen=off_screen, window_size=list(window_size))
 
 
 def record_movie(viewer: SeriesViewer, path: str | os.PathLike, *, fps: float = 10.0, orbit: bool = False,
@@ -598,6 +623,7 @@ def add_view_command(sub) -> None:
     cmd.add_argument("--step", type=int, default=None, help="step shown first / in a screenshot (default: 0, "
                      "the last for --screenshot)")
     cmd.add_argument("--compare", type=_steps, metavar="I,J", help="two steps side by side with linked cameras")
+    cmd.add_argument("--compare-run", type=Path, metavar="OTHER", help="a second run beside the first, same steps")
     cmd.add_argument("--statistic", help="field-data statistic to chart ('' hides the chart)")
     cmd.add_argument("--movie", type=Path, metavar="OUT.mp4|OUT.gif", help="render every step into a movie")
     cmd.add_argument("--fps", type=float, default=10.0, help="movie frames per second (default: 10)")
@@ -630,12 +656,13 @@ def run_view(args) -> int:
 
         data = series.path if series.path.is_file() else series.files[-1]
         print(f"paraview state -> {write_paraview_state(series, data, args.paraview_state, scalars=args.scalars)}")
+    options = {"scalars": args.scalars, "compare": args.compare, "other": args.compare_run,
+               "statistic": args.statistic, "window_size": tuple(args.window_size)}
     for out in (args.movie, args.screenshot):
         if out is None:
             continue
         step = args.step if args.step is not None else (0 if out is args.movie else len(series) - 1)
-        viewer = view(series, scalars=args.scalars, step=step, compare=args.compare, statistic=args.statistic,
-                      widgets=False, off_screen=True, window_size=tuple(args.window_size))
+        viewer = view(series, step=step, widgets=False, off_screen=True, **options)
         try:
             if out is args.movie:
                 record_movie(viewer, out, fps=args.fps, orbit=args.orbit)
@@ -648,9 +675,7 @@ def run_view(args) -> int:
     if args.web is not None and not exporting:
         from pverosion.web import serve
 
-        serve(view(series, scalars=args.scalars, step=args.step or 0, statistic=args.statistic, widgets=False,
-                   off_screen=True, window_size=tuple(args.window_size)), port=args.web)
+        serve(view(series, step=args.step or 0, widgets=False, off_screen=True, **options), port=args.web)
     elif not exporting:
-        view(series, scalars=args.scalars, step=args.step or 0, compare=args.compare,
-             statistic=args.statistic, window_size=tuple(args.window_size)).show()
+        view(series, step=args.step or 0, **options).show()
     return 0

@@ -41,7 +41,11 @@ def _widgets(viewer):
 
 
 def _shown(viewer, name: str = "data", panel: int = 0) -> pv.DataSet:
-    return viewer.renderers[panel].actors[f"{panel}:{name}"].mapper.dataset
+    """What the panel's actor ``name`` draws: its mapper's input, brought up to date as a render would."""
+    mapper = viewer.renderers[panel].actors[f"{panel}:{name}"].mapper
+    if mapper.GetInputAlgorithm() is not None:
+        mapper.GetInputAlgorithm().Update()
+    return pv.wrap(mapper.GetInput())
 
 
 def test_series_reads_steps_lazily(series_path):
@@ -266,3 +270,27 @@ def test_readme_screenshot(series_path, tmp_path):
         target.parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(out, target)
     assert out.stat().st_size < 200_000
+
+
+def test_compare_two_runs_moves_both(series_path):
+    other = [pv.read(f).translate((0.5, 0.0, 0.0)) for f in Series(series_path).files[:10]]  # a shorter run
+    viewer = view(series_path, other=other, off_screen=True, window_size=(600, 300))
+    try:
+        viewer.set_step(6)
+        np.testing.assert_array_equal(_shown(viewer, panel=0).points, pv.read(viewer.series.files[6]).points)
+        np.testing.assert_array_equal(_shown(viewer, panel=1).points, other[6].points)
+        viewer.set_step(20)  # past the other run's end: it stays at its last step
+        assert viewer.steps == [20, 9]
+        np.testing.assert_array_equal(_shown(viewer, panel=1).points, other[9].points)
+        assert viewer.renderers[0].camera is viewer.renderers[1].camera
+    finally:
+        viewer.close()
+
+
+def test_play_advances_and_wraps(series_path):
+    viewer = view(series_path, step=STEPS - 2, off_screen=True, window_size=(200, 200))
+    try:
+        assert viewer.advance() == STEPS - 1
+        assert viewer.advance() == 0
+    finally:
+        viewer.close()
