@@ -110,6 +110,7 @@ class LiveSession:
         self.particles = pv.PolyData()
         self._actor = None
         self._text = None
+        self._faces: np.ndarray | None = None
         self._drawn: tuple | None = (None, 0)
         self._build()
         self._publish()
@@ -316,10 +317,13 @@ class LiveSession:
             return False
         points, faces, depth, ids, cloud, step = self._state  # replaced whole by the worker, never changed
         self._shown = version
-        surface = pv.PolyData.from_regular_faces(points, faces)
-        surface.point_data["erosion_depth"] = depth
-        surface.point_data["input_id"] = ids
-        self.mesh.shallow_copy(surface)
+        if self._faces is not None and np.array_equal(self._faces, faces):
+            self.mesh.points = points  # same triangles: move the points only
+        else:
+            self.mesh.shallow_copy(pv.PolyData.from_regular_faces(points, faces))
+            self._faces = faces
+        self.mesh.point_data["erosion_depth"] = depth
+        self.mesh.point_data["input_id"] = ids
         self.particles.shallow_copy(cloud)
         if self._actor is not None:
             self._actor.mapper.scalar_range = scalar_style("erosion_depth", np.append(depth, 0.0))["clim"]
