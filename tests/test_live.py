@@ -29,6 +29,7 @@ def _run_until(session, steps: int, *, limit: float = 600.0) -> None:
     session.pause()
     assert session.error is None, session.error
     assert session.steps >= steps
+    assert session.updates >= 2  # the view followed the worker while it stepped
 
 
 def _moved(session, mesh) -> np.ndarray:
