@@ -631,7 +631,7 @@ def add_view_command(sub) -> None:
     cmd.add_argument("--screenshot", type=Path, metavar="OUT.png", help="render one step to a PNG")
     cmd.add_argument("--paraview-state", type=Path, metavar="OUT.py|OUT.pvsm",
                      help="write a ParaView script or state that opens PATH with the same colour coding")
-    cmd.add_argument("--live", choices=STAGES, help="erode the surface PATH interactively (click to place water "
+    cmd.add_argument("--live", choices=STAGES, help="erode the surface PATH interactively (right-click to place water "
                      "or to brush weathering)")
     cmd.add_argument("--web", type=int, metavar="PORT", help="serve the viewer as a web page on 127.0.0.1:PORT "
                      "(needs pverosion[view])")
