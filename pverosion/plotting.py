@@ -86,7 +86,7 @@ def scalar_style(name: str, values, *, percentile: float = 98.0) -> dict:
     Returns
     -------
     dict
-        ``cmap`` and ``clim`` (and ``n_colors`` for labels).
+        ``cmap`` and ``clim`` (and for labels ``n_colors`` and ``annotations``, a label per value).
     """
     values = np.asarray(values, dtype=np.float64)
     if values.ndim == 2:
@@ -98,7 +98,9 @@ def scalar_style(name: str, values, *, percentile: float = 98.0) -> dict:
     lo, hi = float(values.min()), float(values.max())
     if name in CATEGORICAL_ARRAYS:
         n = int(round(hi - lo)) + 1  # one colour per integer label, each centred on its value
-        return {"cmap": "tab10" if n <= 10 else "tab20", "clim": (lo - 0.5, hi + 0.5), "n_colors": n}
+        labels = {float(v): str(int(v)) for v in np.arange(round(lo), round(hi) + 1)} if n <= 20 else None
+        return {"cmap": "tab10" if n <= 10 else "tab20", "clim": (lo - 0.5, hi + 0.5), "n_colors": n,
+                "annotations": labels}
     if hi <= lo:
         hi = lo + 1.0
     return {"cmap": _SEQUENTIAL.get(name, "viridis"), "clim": (lo, hi)}

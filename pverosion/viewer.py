@@ -238,6 +238,7 @@ class SeriesViewer(pv.Plotter):
         self.slices: dict[str, pv.DataSet] = {}
         self.playing = False
         self._scalar_buttons: dict[str, object] = {}
+        self._mode_buttons: dict[str, object] = {}
         self._slider = None
         self._labels: dict[int, object] = {}
         self._timer = None
@@ -302,7 +303,7 @@ class SeriesViewer(pv.Plotter):
                 options["smooth_shading"] = True
             actor = self.add_mesh(layer, name=actor_name, reset_camera=False, render=False, **options)
             actor.SetVisibility(name not in self.hidden)
-        label = f"step {step} / {len(series) - 1}   t = {series.times[step]:g}"
+        label = f"step {step} / {len(series) - 1}   t = {series.times[step]:g}" if len(series) > 1 else ""
         if self.other is not None:
             label = f"{_run_name(series, panel)}: {label}"
         if panel not in self._labels:
@@ -314,8 +315,11 @@ class SeriesViewer(pv.Plotter):
         if name is None or name not in _arrays(layer):
             return {}
         values = layer.point_data[name] if name in layer.point_data else layer.cell_data[name]
+        style = scalar_style(name, values)
         bar = {"title": name, "position_x": 0.3, "position_y": 0.02, "width": 0.34, "height": 0.06}
-        return {"scalars": name, "scalar_bar_args": bar, **scalar_style(name, values)}
+        if "n_colors" in style:
+            bar["n_labels"] = 0  # the annotations name each label's colour
+        return {"scalars": name, "scalar_bar_args": bar, **style}
 
     def _draw_image(self, panel: int, name: str, image: pv.ImageData) -> None:
         if self.slice_origin is None:
@@ -326,7 +330,7 @@ class SeriesViewer(pv.Plotter):
             cut = image.slice(normal=axis, origin=self.slice_origin)
             self.slices[axis] = cut
             actor = self.add_mesh(cut, name=f"{base}:slice_{axis}", reset_camera=False, render=False,
-                                  show_scalar_bar=axis == "x", **options)
+                                  show_scalar_bar=axis == "x", lighting=False, **options)  # true colours
             actor.SetVisibility(self.volume_mode == "slices" and name not in self.hidden)
         if self.volume_mode == "slices" or not options:
             self.remove_actor(f"{base}:volume", render=False)
@@ -415,6 +419,8 @@ class SeriesViewer(pv.Plotter):
             raise ValueError(f"mode must be one of {_VOLUME_MODES}; got {mode!r}")
         self.volume_mode = mode
         self.volume_value = None if value is None else float(value)
+        for other, button in self._mode_buttons.items():
+            button.GetRepresentation().SetState(int(other == mode))
         for panel in range(len(self.steps)):
             self._draw(panel)
         self.render()
@@ -456,11 +462,15 @@ class SeriesViewer(pv.Plotter):
                 self.add_plane_widget(moved, normal=axis, origin=self.slice_origin, normal_rotation=False,
                                       outline_translation=False)
 
-            def switch(state: bool) -> None:
-                self.set_volume_mode("isosurface" if state else "slices")
+            top = 60.0 + 32.0 * min(len(self.scalar_names), 12)
+            for k, mode in enumerate(("threshold", "isosurface")):
+                def switch(state: bool, mode=mode) -> None:
+                    self.set_volume_mode(mode if state else "slices")
 
-            self.add_checkbox_button_widget(switch, value=False, position=(10.0, 60.0 + 32.0 * min(
-                len(self.scalar_names), 12)), size=24, color_on="green")
+                y = top + 32.0 * k
+                self._mode_buttons[mode] = self.add_checkbox_button_widget(
+                    switch, value=False, position=(10.0, y), size=24, color_on="green")
+                self.add_text(mode, position=(40, int(y) + 4), font_size=8, name=f"mode_label:{mode}")
         if self.statistic:
             self._add_chart()
 

@@ -156,6 +156,12 @@ def test_slice_widgets_give_the_slice_values():
             expected = coords[:, 0] + 10 * coords[:, 1] + 100 * coords[:, 2]
             np.testing.assert_allclose(cut["value"], expected, atol=1e-9)
             assert cut.n_points == np.prod([n for m, n in enumerate(image.dimensions) if m != k])
+        button = viewer._mode_buttons["threshold"]
+        button.GetRepresentation().SetState(1)
+        button.InvokeEvent("StateChangedEvent")  # a click on the threshold button
+        assert viewer.volume_mode == "threshold"
+        middle = viewer.volume_value
+        assert middle == pytest.approx(0.5 * (image["value"].min() + image["value"].max()))
         viewer.set_volume_mode("threshold", 250.0)
         shown = viewer.actors["0:data:volume"].mapper.dataset
         assert shown.n_cells > 0 and shown["value"].min() >= 250.0 - 111  # whole cells with a point above
@@ -163,6 +169,8 @@ def test_slice_widgets_give_the_slice_values():
         iso = viewer.actors["0:data:volume"].mapper.dataset
         np.testing.assert_allclose(iso["value"], 250.0, atol=1e-9)
         assert not viewer.actors["0:data:slice_x"].GetVisibility()
+        assert viewer._mode_buttons["isosurface"].GetRepresentation().GetState() == 1
+        assert viewer._mode_buttons["threshold"].GetRepresentation().GetState() == 0
         with pytest.raises(ValueError, match="mode"):
             viewer.set_volume_mode("volume")
     finally:
