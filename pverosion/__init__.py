@@ -37,6 +37,8 @@ _LAZY = {
     "InvalidMeshError": "pverosion.kernels.validation",
     "CURVATURE_CMAP": "pverosion.plotting",  # importing pverosion.plotting registers the colour map
     "curvature_cmap": "pverosion.plotting",
+    "interactive": "pverosion.live",
+    "view": "pverosion.viewer",
 }
 
 __all__ = ["__version__", *sorted(_LAZY, key=str.lower)]
@@ -56,7 +58,9 @@ if TYPE_CHECKING:
     )
     from pverosion.kernels.mesh_repair import CoplanarOverlapError, RepairError
     from pverosion.kernels.validation import InvalidMeshError
+    from pverosion.live import interactive
     from pverosion.plotting import CURVATURE_CMAP, curvature_cmap
+    from pverosion.viewer import view
 
 
 def _in_paraview() -> bool:

@@ -72,6 +72,12 @@ def build_parser(*, stages: Collection[str] | None = None) -> argparse.ArgumentP
                         help=f"stages to compile (default: all): {', '.join(s.command for s in STAGE_INDEX)}")
     warmup.add_argument("--processes", type=int, metavar="N", help="parallel processes (default: one per core)")
     paraview_setup.add_parser(sub)
+    if stages is None or "view" in stages:
+        from pverosion.viewer import add_view_command  # PyVista: only when the view command is used
+
+        add_view_command(sub)
+    else:
+        sub.add_parser("view", help="look at a result: time slider, slices, statistics; export movies")
     for stage in STAGE_INDEX:
         if stages is not None and stage.command not in stages:
             sub.add_parser(stage.command, help=stage.label)
@@ -308,6 +314,10 @@ def main(argv: list[str] | None = None) -> int:
                 return _run_batch(args)
             elif args.command == "paraview":
                 return args.func(args)
+            elif args.command == "view":
+                from pverosion.viewer import run_view
+
+                return run_view(args)
             else:
                 _run_stage(args)
     except KeyboardInterrupt:

@@ -20,6 +20,7 @@ __all__ = [
     "render_scalars",
     "render_strip",
     "save_figure",
+    "scalar_style",
 ]
 
 CURVATURE_CMAP = "pverosion_curvature"
@@ -63,6 +64,51 @@ def _colours(values, percentile: float, cmap: str | None) -> dict:
     if cmap is None:
         return {"cmap": curvature_cmap(), "clim": _symmetric_limits(values, percentile)}
     return {"cmap": cmap}
+
+
+CATEGORICAL_ARRAYS = ("material_id", "voxel_class", "shard_colour", "source_mesh", "contact")
+"""Point or cell arrays that hold labels, coloured with a qualitative map and one colour per value."""
+
+_SEQUENTIAL = {"hardness": "copper_r", "erosion_depth": "magma", "speed": "Blues", "sediment": "YlOrBr"}
+
+
+def scalar_style(name: str, values, *, percentile: float = 98.0) -> dict:
+    """``add_mesh`` colour options for the array ``name`` holding ``values``.
+
+    Curvature arrays get the curvature colour map with limits symmetric about
+    zero (see :func:`render_scalars`); label arrays (:data:`CATEGORICAL_ARRAYS`)
+    a qualitative map with one colour per value; ``hardness`` the thesis'
+    brown scale (dark is hard); other arrays a sequential map over their range.
+
+    Parameters
+    ----------
+    name : str
+    values : array_like, shape (N,) or (N, k)
+        The array (vectors are coloured by their magnitude).
+    percentile : float, default: 98.0
+        Percentile of ``|values|`` used as the symmetric curvature limit.
+
+    Returns
+    -------
+    dict
+        ``cmap`` and ``clim`` (and for labels ``n_colors`` and ``annotations``, a label per value).
+    """
+    values = np.asarray(values, dtype=np.float64)
+    if values.ndim == 2:
+        values = np.linalg.norm(values, axis=1)
+    if values.size == 0:
+        return {"cmap": "viridis"}
+    if "curvature" in name:
+        return {"cmap": curvature_cmap(), "clim": _symmetric_limits(values, percentile)}
+    lo, hi = float(values.min()), float(values.max())
+    if name in CATEGORICAL_ARRAYS:
+        n = int(round(hi - lo)) + 1  # one colour per integer label, each centred on its value
+        labels = {float(v): str(int(v)) for v in np.arange(round(lo), round(hi) + 1)} if n <= 20 else None
+        return {"cmap": "tab10" if n <= 10 else "tab20", "clim": (lo - 0.5, hi + 0.5), "n_colors": n,
+                "annotations": labels}
+    if hi <= lo:
+        hi = lo + 1.0
+    return {"cmap": _SEQUENTIAL.get(name, "viridis"), "clim": (lo, hi)}
 
 
 def _save_screenshot(plotter, path: str | os.PathLike) -> Path:

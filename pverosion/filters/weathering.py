@@ -53,8 +53,7 @@ def weathering_output(solver: GuardedMeshSolver, source, out, *, prefix: str = "
         out.GetCellData().Initialize()  # faces were collapsed: per-face input data no longer applies
     set_point_array(out, "mean_curvature", solver.mean_curvature())
     set_point_array(out, "displacement", solver.displacement)
-    depth = -np.einsum("ij,ij->i", solver.displacement, solver.initial_normals[solver.ids])
-    set_point_array(out, "erosion_depth", depth)
+    set_point_array(out, "erosion_depth", solver.erosion_depth())
     out_pd.SetActiveScalars("mean_curvature")
     for name, series in solver.statistics.items():
         set_field_value(out, f"{prefix}_{name}", series)

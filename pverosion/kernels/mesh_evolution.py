@@ -254,6 +254,10 @@ class GuardedMeshSolver:
         """Mean curvature H (V',) of the current mesh."""
         return self._curvature(self.points).mean
 
+    def erosion_depth(self) -> np.ndarray:
+        """Cumulative displacement (V',) of every current vertex into the input surface, along its input normal."""
+        return -np.einsum("ij,ij->i", self.displacement, self.initial_normals[self.ids])
+
     def _improve(self, min_length: float, *, movable: np.ndarray | None = None) -> None:
         """Collapse edges shorter than ``min_length`` (only between ``movable`` vertices (V',) when given)."""
         candidates = short_edge_candidates(self.points, self._edges, self._usable, min_length)

@@ -1,0 +1,104 @@
+"""Live erosion driven off-screen: picks place water or brushes, the worker steps, the view shows the changes."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+import pverosion
+from pverosion.examples import load_cube
+
+
+def _display(plotter, point) -> tuple[float, float]:
+    renderer = plotter.renderer
+    renderer.SetWorldPoint(*point, 1.0)
+    renderer.WorldToDisplay()
+    x, y, _ = renderer.GetDisplayPoint()
+    return x, y
+
+
+def _run_until(session, steps: int, *, limit: float = 600.0) -> None:
+    """Let the worker step in the background until ``steps`` iterations are done (bounded wait)."""
+    session.start()
+    start = time.monotonic()
+    while session.steps < steps and time.monotonic() - start < limit and session.error is None:
+        time.sleep(0.05)
+        session.update_view()
+    session.pause()
+    assert session.error is None, session.error
+    assert session.steps >= steps
+    assert session.updates >= 2  # the view followed the worker while it stepped
+
+
+def _moved(session, mesh) -> np.ndarray:
+    shown = session.mesh
+    return np.linalg.norm(shown.points - mesh.points[shown["input_id"]], axis=1) > 0.0
+
+
+def test_water_erodes_where_it_falls_and_nowhere_else():
+    mesh = load_cube(resolution=12)
+    session = pverosion.interactive(mesh, stage="hydraulic", off_screen=True, window_size=(400, 400))
+    try:
+        picked = session.pick_screen(*_display(session.plotter, (0.4, 0.4, 1.0)))  # a click on the top face
+        np.testing.assert_allclose(picked, (0.4, 0.4, 1.0), atol=1e-3)
+        assert session.source[2] > 1.0  # the source hangs above the picked point
+        wet = np.zeros(mesh.n_points, dtype=bool)
+        first = []
+
+        def record(_step: int) -> None:  # the vertices the water reached, iteration by iteration
+            now = session.solver.ids[session.solver.f_distance > 0.0]
+            if len(now) and not wet.any():
+                first.append(mesh.points[now])
+            wet[now] = True
+
+        session.on_step(record)
+        _run_until(session, 12)
+        session.update_view()
+        moved = _moved(session, mesh)
+        assert session.particles.n_points > 0
+        assert moved.sum() > 0
+        changed = session.mesh["input_id"][moved]
+        gone = np.setdiff1d(np.arange(mesh.n_points), session.mesh["input_id"])  # collapsed away
+        assert wet[changed].all() and wet[gone].all()  # every change lies where the water was
+        assert not wet[mesh.points[:, 2] < -0.5].any()  # it never reached the lower part of the cube
+        # the water first touched the surface under the source
+        assert np.linalg.norm(first[0][:, :2] - (0.4, 0.4), axis=1).max() <= session.source_radius + 4 * session.radius
+        # pause holds the state; reset goes back to the input without water
+        held = session.steps
+        time.sleep(0.3)
+        assert session.steps == held
+        session.reset()
+        assert session.steps == 0 and session.source is None and session.particles.n_points == 0
+        assert not _moved(session, mesh).any()
+    finally:
+        session.stop()
+        session.plotter.close()
+
+
+def test_weathering_brush_erodes_only_inside_it(tmp_path):
+    mesh = load_cube(resolution=12)
+    session = pverosion.interactive(mesh, stage="weather", off_screen=True, window_size=(400, 400),
+                                    source_radius=0.5, min_edge_ratio=0.0)
+    try:
+        corner = np.array([1.0, 1.0, 1.0])
+        session.pick(corner)
+        _run_until(session, 5)
+        session.update_view()
+        moved = _moved(session, mesh)
+        assert moved.any()
+        original = mesh.points[session.mesh["input_id"]]
+        assert np.linalg.norm(original[moved] - corner, axis=1).max() <= 0.5 + 1e-9
+        path = session.save(tmp_path / "state.vtp")
+        import pyvista as pv
+
+        np.testing.assert_array_equal(pv.read(path).points, session.mesh.points)
+    finally:
+        session.stop()
+        session.plotter.close()
+
+
+def test_live_rejects_unknown_stage():
+    with pytest.raises(ValueError, match="stage"):
+        pverosion.interactive(load_cube(resolution=4), stage="volcano", off_screen=True)
