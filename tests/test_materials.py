@@ -190,6 +190,19 @@ def test_fitted_tree_is_exact_and_smaller_than_the_volume_on_smooth_data():
     assert np.array_equal(again.tree.params, fitted.tree.params) and np.array_equal(again.tree.leaf, fitted.tree.leaf)
 
 
+@pytest.mark.parametrize("method", ["fitted", "complete"])
+def test_volume_trees_do_not_depend_on_units(method):
+    x, y, z = np.meshgrid(*[np.linspace(-1, 1, n) for n in (20, 18, 16)], indexing="ij")
+    values = (200 * np.exp(-(x**2 + 2 * y**2 + z**2))).astype(np.uint8)
+    trees = [bsp_from_volume(values, (80, 150), origin=np.array([1.0, -2.0, 0.5]) * scale,
+                             spacing=np.array([0.5, 0.5, 0.8]) * scale, method=method).tree
+             for scale in (1e-3, 1.0, 1e3)]
+    for tree, scale in zip(trees, (1e-3, 1.0, 1e3)):
+        assert np.array_equal(tree.leaf, trees[1].leaf) and np.array_equal(tree.negative, trees[1].negative)
+        np.testing.assert_allclose(tree.params[:, :3], trees[1].params[:, :3], atol=1e-12)
+        np.testing.assert_allclose(tree.params[:, 3], trees[1].params[:, 3] * scale, rtol=1e-9, atol=1e-12 * scale)
+
+
 def test_fitted_tree_of_tilted_strata_is_a_few_percent_of_the_volume():
     i, j, k = np.indices((64, 48, 40))
     strata = (40 * np.floor((k + 0.3 * i) / 8) % 255).astype(np.uint8)  # layers 8 voxels thick, dipping along x
