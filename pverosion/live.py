@@ -55,6 +55,9 @@ class LiveSession:
         Weather: radius of a brush (default: 10 % of the bounding box diagonal).
     speed : float, optional
         Hydraulic: speed of the released water (default: a layer of particles every second iteration).
+    gravity : (3,) float, default: (0, 0, -9.81)
+        Hydraulic: gravity in model units per second squared; the source hangs above a pick against it
+        (e.g. ``(0, -9.81, 0)`` for the bunny scan, whose up is +y).
     **options
         Passed to :class:`~pverosion.kernels.hydraulic_erosion.HydraulicSolver` or
         :class:`~pverosion.kernels.weathering.WeatheringSolver`.
@@ -78,7 +81,7 @@ class LiveSession:
 
     def __init__(self, mesh: pv.PolyData, *, stage: str = "hydraulic", plotter: pv.Plotter | None = None,
                  radius: float = 0.0, source_radius: float | None = None, speed: float | None = None,
-                 **options) -> None:
+                 gravity=(0.0, 0.0, -9.81), **options) -> None:
         if stage not in STAGES:
             raise ValueError(f"stage must be one of {STAGES}; got {stage!r}")
         points, faces = as_triangle_mesh(np.asarray(mesh.points, dtype=np.float64), mesh.regular_faces)
@@ -94,6 +97,7 @@ class LiveSession:
             raise ValueError(f"source_radius must be > 0; got {source_radius!r}")
         self.source_radius = float(source_radius)
         self._speed = speed
+        self._fluid = FluidParameters(radius=self.radius, gravity=tuple(gravity))
         self._lock = threading.Lock()  # held while the solver steps
         self._wake = threading.Condition(self._lock)
         self._picks_lock = threading.Lock()
@@ -125,7 +129,7 @@ class LiveSession:
         self._travel = 0.0
         self._primed = False
         if self.stage == "hydraulic":
-            self.solver = HydraulicSolver(points, faces, fluid=FluidParameters(radius=self.radius), **self._options)
+            self.solver = HydraulicSolver(points, faces, fluid=self._fluid, **self._options)
             self._gravity = np.asarray(self.solver.fluid.params.gravity, dtype=np.float64)
             self._layer = Emitter(position=(0.0, 0.0, 0.0), direction=tuple(self._gravity),
                                   radius=self.source_radius, rate=1.0).lattice(2.0 * self.radius)

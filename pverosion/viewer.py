@@ -614,10 +614,23 @@ def record_movie(viewer: SeriesViewer, path: str | os.PathLike, *, fps: float = 
 
 
 def _steps(text: str) -> tuple[int, int]:
+    import argparse
+
     parts = text.split(",")
-    if len(parts) != 2:
-        raise ValueError(f"--compare takes two steps I,J; got {text!r}")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise argparse.ArgumentTypeError(f"expected two steps I,J; got {text!r}")
     return int(parts[0]), int(parts[1])
+
+
+def _gravity(text: str) -> tuple[float, ...]:
+    import argparse
+
+    from pverosion.filters.materials import parse_numbers
+
+    try:
+        return tuple(parse_numbers(text, "gravity", count=3))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def add_view_command(sub) -> None:
@@ -643,6 +656,8 @@ def add_view_command(sub) -> None:
                      help="write a ParaView script or state that opens PATH with the same colour coding")
     cmd.add_argument("--live", choices=STAGES, help="erode the surface PATH interactively (right-click to place water "
                      "or to brush weathering)")
+    cmd.add_argument("--gravity", type=_gravity, default=(0.0, 0.0, -9.81), metavar="GX,GY,GZ",
+                     help="--live hydraulic: gravity (default: 0,0,-9.81; 0,-9.81,0 for a model whose up is +y)")
     cmd.add_argument("--web", type=int, metavar="PORT", help="serve the viewer as a web page on 127.0.0.1:PORT "
                      "(needs pverosion[view])")
     cmd.add_argument("--window-size", type=int, nargs=2, default=(1024, 768), metavar=("W", "H"))
@@ -654,7 +669,8 @@ def run_view(args) -> int:
         from pverosion.io import read_mesh
         from pverosion.live import interactive
 
-        session = interactive(read_mesh(args.path), stage=args.live, window_size=tuple(args.window_size))
+        session = interactive(read_mesh(args.path), stage=args.live, window_size=tuple(args.window_size),
+                              **({"gravity": args.gravity} if args.live == "hydraulic" else {}))
         session.start()
         session.plotter.show()
         session.stop()

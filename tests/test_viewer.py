@@ -84,6 +84,9 @@ def test_slider_moves_through_steps_and_matches_files(series_path):
             images[step] = _image(viewer)
         assert np.abs(images[3] - images[29]).max() > 50  # the render changes from step to step
         assert len(viewer.series.cached_steps) <= 8
+        stats = pv.read(viewer.series.files[-1]).field_data["weathering_eroded_volume"]
+        assert viewer.statistic == "weathering_eroded_volume"
+        np.testing.assert_array_equal(next(iter(viewer._chart.plots("line"))).y, stats)  # the run's whole history
         # the step's render matches a viewer opened on that step's file alone, without widgets
         alone = view(pv.read(viewer.series.files[17]), off_screen=True, window_size=(400, 300), widgets=False)
         other = view(series_path, step=17, off_screen=True, window_size=(400, 300), widgets=False)
@@ -219,19 +222,33 @@ def test_compare_two_steps_with_linked_cameras(series_path):
         viewer.close()
 
 
-@pytest.mark.parametrize("suffix", [".mp4", ".gif"])
-def test_movie_has_one_frame_per_step(series_path, tmp_path, suffix):
+def _frames(path: Path) -> list[np.ndarray]:
     iio = pytest.importorskip("imageio.v3")
-    if suffix == ".mp4":
-        pytest.importorskip("imageio_ffmpeg", reason="mp4 needs the view extra (imageio-ffmpeg)")
+    return [frame.astype(int) for frame in iio.imiter(path)]
+
+
+def test_cli_movie_has_one_frame_per_step(series_path, tmp_path):
+    pytest.importorskip("imageio_ffmpeg", reason="mp4 needs the view extra (imageio-ffmpeg)")
+    out = tmp_path / "cube.mp4"
+    done = _cli(series_path, "--movie", out, "--fps", 12, "--window-size", 240, 160)
+    assert done.returncode == 0, done.stderr
+    frames = _frames(out)
+    assert len(frames) == STEPS
+    assert frames[0].shape[:2] == (160, 240)
+    assert np.abs(frames[0] - frames[-1]).max() > 50
+
+
+def test_gif_orbits_the_camera(series_path, tmp_path):
     viewer = view(series_path, off_screen=True, widgets=False, window_size=(240, 160))
     try:
-        out = record_movie(viewer, tmp_path / f"cube{suffix}", fps=10, orbit=suffix == ".gif")
+        azimuth = viewer.camera.azimuth
+        out = record_movie(viewer, tmp_path / "cube.gif", fps=10, orbit=True, steps=[0] * 4)  # one step, turning
+        assert viewer.camera.azimuth == pytest.approx(azimuth + 3 * 90.0)
     finally:
         viewer.close()
-    frames = list(iio.imiter(out))
-    assert len(frames) == STEPS
-    assert np.abs(frames[0].astype(int) - frames[-1].astype(int)).max() > 50
+    frames = _frames(out)
+    assert len(frames) == 4
+    assert np.abs(frames[0] - frames[1]).max() > 50  # the view turned, the data did not change
 
 
 def _cli(*args, cwd=None):
