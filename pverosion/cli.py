@@ -7,6 +7,7 @@ Stage subcommands and their options are generated from the filters'
 from __future__ import annotations
 
 import argparse
+import contextlib
 import re
 import sys
 import time
@@ -177,7 +178,7 @@ def _series_path(args: argparse.Namespace) -> Path:
 
 
 def _cli_message(message: str, filter_cls: type[ErosionFilter] | None) -> str:
-    """``message`` with the stage's options in CLI syntax (``name='v'`` -> ``--name v``, ``time_step`` -> ``--time-step``)."""
+    """``message`` with the stage's options in CLI syntax: ``name='v'`` -> ``--name v``, ``a_b`` -> ``--a-b``."""
     if filter_cls is None:
         return message
     for p in filter_cls.PARAMS:
@@ -300,11 +301,14 @@ def main(argv: list[str] | None = None) -> int:
     from pverosion.filters.base import deferred_interrupt  # after --help, which needs no VTK
 
     where = f"pverosion {args.command}"
+
     def show(message, category, *_args, **_kwargs):
         print(f"{where}: warning: {message}", file=sys.stderr)
 
     try:
-        with deferred_interrupt(), warnings.catch_warnings():
+        # a stage takes Ctrl-C at its next step boundary; batch and demo are interrupted as usual
+        deferred = deferred_interrupt() if hasattr(args, "filter_cls") else contextlib.nullcontext()
+        with deferred, warnings.catch_warnings():
             warnings.showwarning = show
             if args.command == "demo":
                 _run_demo(args)

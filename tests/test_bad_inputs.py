@@ -375,3 +375,17 @@ def test_a_folder_holds_one_scenario(tmp_path):
     # the same scenario, re-laid out with a comment, resumes
     _scenario(tmp_path, "# again\n" + first.read_text(), "a.toml")
     assert run_batch(first, tmp_path / "out", serial=True, progress=False).skipped == 1
+
+
+def test_cli_messages_use_cli_syntax():
+    from pverosion.cli import _cli_message
+    from pverosion.filters import HydraulicErosion, RepairIntersections
+
+    assert _cli_message("faces point inwards (use orientation='outward' or reverse them)", RepairIntersections) \
+        == "faces point inwards (use --orientation outward or reverse them)"
+    assert _cli_message("the input has holes: set close_holes=True to close them", HydraulicErosion) \
+        == "the input has holes: set --close-holes to close them"
+    assert _cli_message("time_step: a substep of 5 s; lower time_step", HydraulicErosion) \
+        == "--time-step: a substep of 5 s; lower --time-step"
+    assert _cli_message("iterations must be >= 0; the particle radius is 0", HydraulicErosion) \
+        == "--iterations must be >= 0; the particle radius is 0"  # 'radius' in prose stays a word

@@ -31,10 +31,10 @@ from pverosion.limits import check_memory
 
 __all__ = [
     "ErosionFilter",
-    "check_interrupt",
-    "deferred_interrupt",
     "Param",
     "TimeSteppedFilter",
+    "check_interrupt",
+    "deferred_interrupt",
     "output_times",
     "parse_numbers",
     "polydata_triangles",
@@ -144,7 +144,6 @@ def parse_numbers(text: str, name: str, *, count: int | None = None) -> list[flo
     return values
 
 
-
 class ErosionFilter(VTKPythonAlgorithmBase):
     """Base class of all pverosion filters (one input port unless ``INPUT_PORTS`` names more, one output port).
 
@@ -188,7 +187,7 @@ class ErosionFilter(VTKPythonAlgorithmBase):
         self._values = {p.name: p.default for p in self.PARAMS}
         self._error: BaseException | None = None
         self.last_error: BaseException | None = None
-        """The exception of the last failed pipeline pass (None after a pass that succeeded)."""
+        """The exception of the last failed pipeline pass (None again after a successful update)."""
         for name, value in options.items():
             self.set_option(name, value)
 
@@ -223,14 +222,8 @@ class ErosionFilter(VTKPythonAlgorithmBase):
         """All option values by snake_case name."""
         return dict(self._values)
 
-    def _guarded(self, work: Callable[[], Any], *, first: bool = False) -> int:
-        """Run one pipeline pass; keep any exception for :meth:`run_time` and return VTK's 0 (failure) or 1.
-
-        ``first`` marks the first pass of an update (information), which
-        forgets the error of an earlier update.
-        """
-        if first:
-            self._error = None
+    def _guarded(self, work: Callable[[], Any]) -> int:
+        """Run one pipeline pass; keep any exception for :meth:`run_time` and return VTK's 0 (failure) or 1."""
         try:
             work()
         except BaseException as exc:  # noqa: BLE001 - kept and re-raised by run_time(); VTK would only print it
@@ -242,7 +235,7 @@ class ErosionFilter(VTKPythonAlgorithmBase):
 
     def RequestInformation(self, request, in_info, out_info):
         """Publish the output's meta-data (:meth:`information`); errors are kept, see :meth:`run`."""
-        return self._guarded(lambda: self.information(out_info.GetInformationObject(0)), first=True)
+        return self._guarded(lambda: self.information(out_info.GetInformationObject(0)))
 
     def information(self, info) -> None:
         """Fill the output information object ``info`` (meta-data such as TIME_STEPS); nothing by default."""
@@ -317,6 +310,7 @@ class ErosionFilter(VTKPythonAlgorithmBase):
                 self.SetInputDataObject(port, obj)
         shown = vtkObject.GetGlobalWarningDisplay()
         vtkObject.GlobalWarningDisplayOff()
+        self._error = None  # what this update raises, in any pass
         try:
             if time is None:
                 self.Update()

@@ -208,7 +208,8 @@ class HydraulicErosion(MeshSolverFilter):
             repair=self.get_option("repair"), seed=self.get_option("seed"))
 
     def _fill(self, solver: HydraulicSolver, inp, out) -> None:
-        _warn_without_water(solver)
+        if self.requested_step() == self.get_option("iterations"):  # judged on the whole run, not its first steps
+            _warn_without_water(solver)
         mesh = vtkPolyData()
         weathering_output(solver, inp, mesh, prefix="hydraulic")
         set_point_array(mesh, "f_distance", solver.f_distance)
