@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 import pyvista as pv
 from conftest import DATA
-from scipy.spatial.transform import Rotation
 from test_intersection_curves import crossed_torus
 from test_mesh_repair import winding_numbers
 

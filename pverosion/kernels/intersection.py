@@ -352,9 +352,10 @@ def _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
 @njit(cache=True, error_model="numpy")
 def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size, f,
                     out, n_out):
-    """Faces g > f whose boxes meet f's box, that share no edge with f, (with groups) are in another group,
-    and that neither lies strictly on one side of the other's plane (apart from a shared vertex); written to ``out`` from ``n_out`` on when
-    it is large enough. Returns the count."""
+    """Faces g whose boxes meet f's box, that share no edge with f, (with groups) are in another group, and
+    that neither lies strictly on one side of the other's plane (apart from a shared vertex): g > f, or with a
+    query any g not queried before f. Written to ``out`` as (min, max) from ``n_out`` on when it is large
+    enough. Returns the count."""
     fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
     for ix in range(fx0, fx1 + 1):
         for iy in range(fy0, fy1 + 1):
