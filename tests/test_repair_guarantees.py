@@ -360,3 +360,24 @@ def test_candidate_pairs_with_a_query_are_the_pairs_with_a_queried_face():
     some = candidate_pairs(points, faces, query=query)
     assert len(some) == len({tuple(pair) for pair in some.tolist()})  # each pair once
     assert {tuple(pair) for pair in some.tolist()} == {(f, g) for f, g in everything if query[f] or query[g]}
+
+
+def _slab_under(points, axis, *, level=3):
+    """A slab whose top face is the plane through the lowest point of ``points`` along ``axis``."""
+    lo, hi = points.min(axis=0) - 0.01, points.max(axis=0) + 0.01
+    hi[axis] = points[:, axis].min()
+    lo[axis] = hi[axis] - 0.02
+    return _box(lo, hi, level=level)
+
+
+@pytest.mark.parametrize("axis", [1, 2])
+def test_a_scan_on_a_ground_slab_it_touches_unites_exactly(folded_bunny, axis):
+    """Resting on its lowest vertex (not on a flat face): the union's volume is the sum of the slab's and that of
+    the scan's winding region (it folds)."""
+    points, faces = folded_bunny
+    slab = _slab_under(points, axis)
+    union = boolean_meshes(points, faces, *slab, "union")
+    assert_two_manifold(union.points, union.faces)
+    repaired = repair_intersections(points, faces)
+    assert signed_volume(union.points, union.faces) == pytest.approx(
+        signed_volume(repaired.points, repaired.faces) + signed_volume(*slab), rel=1e-12)
