@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 import pyvista as pv
 from conftest import DATA
-from scipy.spatial.transform import Rotation
 from test_intersection_curves import crossed_torus
 from test_mesh_repair import winding_numbers
 
@@ -331,3 +330,54 @@ def test_fuzz_corpus_against_manifold3d(one_thread):
     assert outcomes.get("ok", 0) >= 0.9 * FUZZ_CASES, outcomes
     # exactly degenerate meetings of three surfaces on an edge are refused with RepairError, rarely
     assert outcomes.get("refused", 0) <= 0.01 * FUZZ_CASES, outcomes
+
+
+# --- the exact search: neighbours at a vertex, queries ------------------------------------------------------------
+
+
+def test_neighbours_at_a_vertex_that_cross_beyond_it_give_a_segment_from_it():
+    points = np.array([[0.0, 0.0, 0.0], [2.0, -1.0, 0.0], [2.0, 1.0, 0.0],  # f in z = 0
+                       [1.0, 0.2, -1.0], [1.0, -0.2, 1.0]])  # g = (0, 3, 4): its edge 3-4 pierces f
+    faces = np.array([[0, 1, 2], [0, 3, 4]])
+    curves = intersection_curves(points, faces)
+    assert len(curves.segments) == 1
+    ends = curves.point_keys[curves.segments[0]]
+    assert sorted(ends[:, 0].tolist()) == [0, 1]  # the shared vertex and where edge 3-4 crosses f
+    assert curves.points[curves.segments[0]][:, 2] == pytest.approx([0.0, 0.0])
+    # turned away from f, g meets it only at the shared vertex: nothing, not even a touching pair
+    points[4] = [1.0, -0.2, -0.5]
+    away = intersection_curves(points, faces)
+    assert len(away.segments) == 0 and away.touching == 0
+
+
+def test_candidate_pairs_with_a_query_are_the_pairs_with_a_queried_face():
+    from pverosion.kernels.intersection import candidate_pairs
+
+    a, b = pv.Icosphere(radius=1.0, nsub=2), pv.Icosphere(radius=0.8, nsub=2, center=(0.7, 0.1, 0.0))
+    points, faces = _join(_arrays(a), _arrays(b))
+    everything = {tuple(pair) for pair in candidate_pairs(points, faces).tolist()}
+    query = np.random.default_rng(3).random(len(faces)) < 0.2
+    some = candidate_pairs(points, faces, query=query)
+    assert len(some) == len({tuple(pair) for pair in some.tolist()})  # each pair once
+    assert {tuple(pair) for pair in some.tolist()} == {(f, g) for f, g in everything if query[f] or query[g]}
+
+
+def _slab_under(points, axis, *, level=3):
+    """A slab whose top face is the plane through the lowest point of ``points`` along ``axis``."""
+    lo, hi = points.min(axis=0) - 0.01, points.max(axis=0) + 0.01
+    hi[axis] = points[:, axis].min()
+    lo[axis] = hi[axis] - 0.02
+    return _box(lo, hi, level=level)
+
+
+@pytest.mark.parametrize("axis", [1, 2])
+def test_a_scan_on_a_ground_slab_it_touches_unites_exactly(folded_bunny, axis):
+    """Resting on its lowest vertex (not on a flat face): the union's volume is the sum of the slab's and that of
+    the scan's winding region (it folds)."""
+    points, faces = folded_bunny
+    slab = _slab_under(points, axis)
+    union = boolean_meshes(points, faces, *slab, "union")
+    assert_two_manifold(union.points, union.faces)
+    repaired = repair_intersections(points, faces)
+    assert signed_volume(union.points, union.faces) == pytest.approx(
+        signed_volume(repaired.points, repaired.faces) + signed_volume(*slab), rel=1e-12)

@@ -165,8 +165,10 @@ class RepairIntersections(ErosionFilter):
     input's winding number is at least 1: parts that ended up inside the
     solid, or turned inside out, are cut away. Intersections between closed
     parts are resolved too (overlapping parts merge); the output may fall
-    apart into several closed pieces. The input must be closed, made of
-    triangles and oriented outward.
+    apart into several closed pieces. The input must be closed and made of
+    triangles; it is oriented outward first unless ``orientation`` is keep.
+    The output is a closed, oriented 2-manifold without self-intersections,
+    or ``RepairError`` is raised.
 
     Output point data ``on_intersection``; cell data ``source_face`` and the
     input's cell arrays; field data ``intersection_cases`` (with
@@ -195,8 +197,10 @@ class BooleanOperation(ErosionFilter):
     intersection curves and the pieces of each kept or dropped by whether
     they lie inside the other: ``union`` A ∪ B, ``intersection`` A ∩ B,
     ``difference`` A ∖ B, ``reverse_difference`` B ∖ A (the subtracted
-    operand's pieces turn around). Both inputs must be closed, made of
-    triangles and oriented outward.
+    operand's pieces turn around). Both inputs must be closed and made of
+    triangles (oriented outward first unless ``orientation`` is keep); an
+    input that intersects itself stands for the region where its winding
+    number is at least 1.
 
     Output point data ``on_intersection``; cell data ``source_mesh`` (0 for
     A, 1 for B), ``source_face`` (the face of that input) and the cell arrays

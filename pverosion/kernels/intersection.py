@@ -350,11 +350,12 @@ def _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
 
 
 @njit(cache=True, error_model="numpy")
-def _face_box_pairs(points, faces, planes, lo, hi, group, origin, inv_h, start, entries, cells, size, f, out,
-                    n_out):
-    """Faces g > f whose boxes meet f's box, that share no edge with f, (with groups) are in another group,
-    and that neither lies strictly on one side of the other's plane (apart from a shared vertex); written to ``out`` from ``n_out`` on when
-    it is large enough. Returns the count."""
+def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size, f,
+                    out, n_out):
+    """Faces g whose boxes meet f's box, that share no edge with f, (with groups) are in another group, and
+    that neither lies strictly on one side of the other's plane (apart from a shared vertex): g > f, or with a
+    query any g not queried before f. Written to ``out`` as (min, max) from ``n_out`` on when it is large
+    enough. Returns the count."""
     fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
     for ix in range(fx0, fx1 + 1):
         for iy in range(fy0, fy1 + 1):
@@ -363,7 +364,10 @@ def _face_box_pairs(points, faces, planes, lo, hi, group, origin, inv_h, start, 
                 key = _key(ix, iy, iz)
                 for e in range(start[b], start[b + 1]):
                     g = entries[e]
-                    if g <= f or cells[e] != key or not _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
+                    # with a query: the pairs of queried faces f with any g, each pair once
+                    if g == f or (g < f and (query.shape[0] == 0 or query[g])):
+                        continue
+                    if cells[e] != key or not _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
                         continue
                     if group.shape[0] and group[f] == group[g]:
                         continue
@@ -380,8 +384,8 @@ def _face_box_pairs(points, faces, planes, lo, hi, group, origin, inv_h, start, 
                             or _one_side(points, faces, planes, g, f, shared)):
                         continue
                     if n_out < out.shape[0]:
-                        out[n_out, 0] = f
-                        out[n_out, 1] = g
+                        out[n_out, 0] = min(f, g)
+                        out[n_out, 1] = max(f, g)
                     n_out += 1
     return n_out
 
@@ -427,27 +431,28 @@ def _one_side(points, faces, planes, f, g, shared):
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
-def _box_pairs(points, faces, planes, lo, hi, ok, group, origin, inv_h, start, entries, cells, size):
-    """All face pairs (f < g) of :func:`candidate_pairs`, in order of f: (K, 2)."""
+def _box_pairs(points, faces, planes, lo, hi, ok, group, query, origin, inv_h, start, entries, cells, size):
+    """All face pairs (f < g) of :func:`candidate_pairs`, grouped by the queried face (by f without a query):
+    (K, 2)."""
     n = faces.shape[0]
     count = np.zeros(n + 1, np.int64)
     none = np.empty((0, 2), np.int64)
     for f in prange(n):
-        if ok[f]:
-            count[f + 1] = _face_box_pairs(points, faces, planes, lo, hi, group, origin, inv_h, start, entries,
-                                           cells, size, f, none, 0)
+        if ok[f] and (query.shape[0] == 0 or query[f]):
+            count[f + 1] = _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start,
+                                           entries, cells, size, f, none, 0)
     for f in range(n):
         count[f + 1] += count[f]
     out = np.empty((count[n], 2), np.int64)
     for f in prange(n):
-        if ok[f] and count[f + 1] > count[f]:
+        if count[f + 1] > count[f]:
             rows = out[count[f]:count[f + 1]]
-            _face_box_pairs(points, faces, planes, lo, hi, group, origin, inv_h, start, entries, cells, size, f,
-                            rows, 0)
+            _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size,
+                            f, rows, 0)
     return out
 
 
-def candidate_pairs(points, faces, *, group=None) -> np.ndarray:
+def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     """Pairs of non-degenerate faces that may meet and share no edge (broad phase).
 
     Their bounding boxes meet, and neither face lies on one side of the
@@ -463,11 +468,14 @@ def candidate_pairs(points, faces, *, group=None) -> np.ndarray:
     group : array_like of int, shape (F,), optional
         Only pairs of faces in different groups (e.g. the input mesh of each
         face); by default all pairs.
+    query : array_like of bool, shape (F,), optional
+        Only pairs with at least one of these faces; by default all pairs.
 
     Returns
     -------
     numpy.ndarray, shape (K, 2), int64
-        Face pairs ``(f, g)`` with ``f < g``, sorted by ``f``.
+        Face pairs ``(f, g)`` with ``f < g``, sorted by ``f`` (without a
+        query).
     """
     pts, fcs = as_triangle_mesh(points, faces)
     grp = np.zeros(0, np.int64) if group is None else np.asarray(group, dtype=np.int64)
@@ -478,7 +486,11 @@ def candidate_pairs(points, faces, *, group=None) -> np.ndarray:
         return np.zeros((0, 2), np.int64)
     size = 4 * n_ok + 1
     start, entries, cells = _build_grid(lo, hi, ok, origin, inv_h, size)
-    return _box_pairs(pts, fcs, _face_planes(pts, fcs), lo, hi, ok, grp, origin, inv_h, start, entries, cells, size)
+    wanted = np.zeros(0, bool) if query is None else np.asarray(query, dtype=bool)
+    if query is not None and wanted.shape != (len(fcs),):
+        raise ValueError(f"query must have shape ({len(fcs)},); got {wanted.shape}")
+    return _box_pairs(pts, fcs, _face_planes(pts, fcs), lo, hi, ok, grp, wanted, origin, inv_h, start, entries,
+                      cells, size)
 
 
 def spatial_order(points, faces) -> np.ndarray:

@@ -89,8 +89,9 @@ class IntersectionCurves:
     touching : int
         Pairs that meet in a single point only (no segment).
     coplanar : numpy.ndarray, shape (C, 2), int64
-        Pairs of faces in one plane whose boxes meet (not cut; they may or
-        may not overlap).
+        Pairs of faces in one plane whose boxes meet and that no edge line
+        strictly separates in that plane (not cut; they may or may not
+        overlap).
     """
 
     points: np.ndarray
@@ -244,6 +245,26 @@ def _key(canon, n_vertices, tri_f, tri_g, f, g, loc_f, loc_g):
 
 
 @njit(cache=True)
+def _apart_in_projection(p, tf, tg):
+    """Whether two faces surely do not meet (faces that share one vertex: meet only there), decided exactly in
+    the projection along the first face's largest normal component, where an edge line of either face must
+    separate them (strictly, or through the shared vertex): what two faces share projects into what their
+    projections share. Nearby faces of a flat region are settled so without the exact zeros of their
+    orientations in space."""
+    shared = 0
+    for k in range(3):
+        shared += tf[k] == tg[0] or tf[k] == tg[1] or tf[k] == tg[2]
+    if shared > 1:
+        return False
+    axis = _drop_axis(p, tf)
+    if _o2(p, axis, tf[0], tf[1], tf[2]) == 0:
+        return False
+    if _separated(p, axis, tf, tg, shared == 0):
+        return True
+    return _o2(p, axis, tg[0], tg[1], tg[2]) != 0 and _separated(p, axis, tg, tf, shared == 0)
+
+
+@njit(cache=True)
 def _is_corner(canon, tri, v):
     """Whether canonical vertex ``v`` is a corner of ``tri``."""
     return canon[tri[0]] == v or canon[tri[1]] == v or canon[tri[2]] == v
@@ -254,6 +275,8 @@ def _classify(p, faces, canon, f, g, keys, locs, cases):
     """Intersection of faces f and g: its status, and for a segment the keys (2, 3) and locations (2, 2) of its
     ends (filled in place); ``cases`` gets the case index of each face (2,)."""
     tf, tg = faces[f], faces[g]
+    if _apart_in_projection(p, tf, tg):
+        return _APART
     sf = np.empty(3, np.int64)
     sg = np.empty(3, np.int64)
     shared = 0
@@ -322,13 +345,15 @@ def _classify_pairs(p, faces, canon, pairs):
 
 
 @njit(cache=True)
-def _separated(p, axis, t, u):
-    """Whether a line through an edge of face ``t`` has all of face ``u`` on or beyond it (exact)."""
+def _separated(p, axis, t, u, strict=False):
+    """Whether a line through an edge of face ``t`` has all of face ``u`` on or beyond it (strictly beyond it)
+    (exact)."""
     s = _o2(p, axis, t[0], t[1], t[2])
+    bound = -1 if strict else 0
     for k in range(3):
         a, b = t[k], t[(k + 1) % 3]
-        if (_o2(p, axis, a, b, u[0]) * s <= 0 and _o2(p, axis, a, b, u[1]) * s <= 0
-                and _o2(p, axis, a, b, u[2]) * s <= 0):
+        if (_o2(p, axis, a, b, u[0]) * s <= bound and _o2(p, axis, a, b, u[1]) * s <= bound
+                and _o2(p, axis, a, b, u[2]) * s <= bound):
             return True
     return False
 
@@ -597,9 +622,10 @@ def intersection_curves(points, faces, *, group=None) -> IntersectionCurves:
     return curves_of(pts, fcs, group, canonical_vertices(pts))
 
 
-def curves_of(pts: np.ndarray, fcs: np.ndarray, group, canon: np.ndarray) -> IntersectionCurves:
-    """:func:`intersection_curves` of a validated mesh whose :func:`canonical_vertices` are ``canon``."""
-    pairs = candidate_pairs(pts, fcs, group=group)
+def curves_of(pts: np.ndarray, fcs: np.ndarray, group, canon: np.ndarray, query=None) -> IntersectionCurves:
+    """:func:`intersection_curves` of a validated mesh whose :func:`canonical_vertices` are ``canon`` (only of
+    the pairs with a face of ``query`` (F,) bool, when given)."""
+    pairs = candidate_pairs(pts, fcs, group=group, query=query)
     status, keys, locs, cases = _classify_pairs(pts, fcs, canon, pairs)
     if np.any(status < 0):
         raise RuntimeError("inconsistent intersection of a face pair (the exact predicates should prevent this)")

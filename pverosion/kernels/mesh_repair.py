@@ -438,7 +438,7 @@ def _shells(points, faces):
     return shell, volume, area
 
 
-def mesh_problems(points, faces) -> list[str]:
+def mesh_problems(points, faces, *, query=None) -> list[str]:
     """What keeps a mesh from being a closed, consistently oriented 2-manifold without self-intersections.
 
     Checked: every edge in exactly two faces, running opposite ways in them;
@@ -454,6 +454,9 @@ def mesh_problems(points, faces) -> list[str]:
     ----------
     points : array_like, shape (V, 3)
     faces : array_like, shape (F, 3)
+    query : array_like of bool, shape (F,), optional
+        Test only the face pairs that involve these faces for crossings
+        (when the others are known not to meet each other); by default all.
 
     Returns
     -------
@@ -487,7 +490,7 @@ def mesh_problems(points, faces) -> list[str]:
     if np.any(winding - down != 0):
         problems.append(f"{np.count_nonzero(winding - down != 0)} shells are inside out or inside another shell")
     canon = canonical_vertices(pts)
-    curves = curves_of(pts, fcs, None, canon)
+    curves = curves_of(pts, fcs, None, canon, query)
     ends = curves.point_keys[curves.segments]  # (S, 2, 3)
     ends_at_vertices = np.all(ends[:, :, 0] == VERTEX, axis=1)
     corners = canon[fcs[curves.pairs]]  # (S, 2, 3)
@@ -515,9 +518,15 @@ def _finalized(result: RepairResult) -> RepairResult:
     find nothing.
     """
     points, faces = result.points, result.faces
+    # faces of the input left whole were tested against each other when the curves were found: only pairs with
+    # a piece of a cut face (it has a curve point) or a face at a split vertex are tested again
+    changed = result.on_curve.copy()
     split = _split_touching(points, faces) if len(faces) else None
     if split is not None:
         points, faces, origin = split
+        moved = origin != np.arange(len(origin))
+        changed = changed[origin] | moved
+        changed[origin[moved]] = True
         result = replace(result, points=points, faces=faces, source_vertex=result.source_vertex[origin],
                          on_curve=result.on_curve[origin])
     if len(faces):
@@ -531,7 +540,10 @@ def _finalized(result: RepairResult) -> RepairResult:
             result = replace(result, points=points[used], faces=new_index[faces[keep]],
                              source_face=result.source_face[keep], source_vertex=result.source_vertex[used],
                              on_curve=result.on_curve[used], polylines=[line for line in lines if np.all(line >= 0)])
-    problems = mesh_problems(result.points, result.faces) if len(result.faces) else []  # empty: nothing left
+            changed = changed[used]
+    problems = []
+    if len(result.faces):  # empty: nothing left, which is a valid result
+        problems = mesh_problems(result.points, result.faces, query=changed[result.faces].any(axis=1))
     if problems:
         raise RepairError("the result would not be a closed, oriented 2-manifold without self-intersections: "
                           + "; ".join(problems))
