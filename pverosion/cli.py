@@ -1,7 +1,9 @@
 """Command line: ``pverosion <stage> IN -o OUT [options]``, ``pverosion batch SCENARIO`` and ``pverosion demo``.
 
 Stage subcommands and their options are generated from the filters'
-:class:`~pverosion.filters.base.Param` metadata.
+:class:`~pverosion.filters.base.Param` metadata; only the filter of the stage
+that runs is imported (``pverosion --help`` imports none). ``pverosion warmup``
+compiles the stages' kernels ahead of use (:mod:`pverosion.warmup`).
 """
 
 from __future__ import annotations
