@@ -198,7 +198,8 @@ def setup(pvpython: str, target: Path, *, warm: bool = True) -> list[str]:
         print("compiling pverosion's kernels in ParaView's Python (once, a few minutes)...", flush=True)
         env = _clean_env()
         env["PYTHONPATH"] = str(target)
-        subprocess.run([pvpython, "-m", "pverosion.paraview_warmup"], check=True, env=env)
+        # from the target folder: ``-m`` puts the working directory first on sys.path
+        subprocess.run([pvpython, "-m", "pverosion.paraview_warmup"], check=True, env=env, cwd=target)
     return lines
 
 
