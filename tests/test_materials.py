@@ -292,6 +292,30 @@ def test_compact_tree_layout_is_checked():
             LatticeBSPTree(**{**arrays, name: bad}, **options)
     with pytest.raises(ValueError, match="spacing > 0"):
         LatticeBSPTree(**arrays, **{**options, "spacing": (1.0, 0.0, 1.0)})
+    data = tree.to_dict()
+    for damaged in ({**data, "value": {**data["value"], "data": "AAAA"}}, {**data, "shape": [7, 3]},
+                    {k: v for k, v in data.items() if k != "right"}):
+        with pytest.raises(ValueError, match="damaged"):
+            LatticeBSPTree.from_dict(damaged)
+    with pytest.raises(ValueError, match="version 1"):
+        LatticeBSPTree.from_dict({**data, "version": 2})
+
+
+def test_compact_tree_widens_its_integers_when_needed(tmp_path):
+    # plane keys beyond int16 on a long volume; offsets past uint16 behave like the narrow ones
+    labels = (np.arange(40_000) >= 35_000).astype(np.int64).reshape(1, 1, -1)
+    tree = build_from_labels(labels, spacing=(1.0, 1.0, 0.25))
+    assert tree.value.dtype == np.int32 and tree.value[0] == 34_999 and tree.n_nodes == 3
+    centres = _centres(labels.shape, spacing=(1.0, 1.0, 0.25))
+    assert np.array_equal(tree.locate(centres)[0], labels.ravel())
+    wide = LatticeBSPTree(tree.direction, tree.value, tree.right.astype(np.uint32), directions=tree.directions,
+                          origin=tree.origin, spacing=tree.spacing)
+    assert wide.nbytes == tree.nbytes + 2 * tree.n_nodes
+    again = LatticeBSPTree.from_json(wide.to_json(tmp_path / "wide.json"))
+    assert again.right.dtype == np.uint32
+    points = np.random.default_rng(7).uniform(-1, 10_001, (1000, 3))
+    assert np.array_equal(again.locate(points)[0], tree.locate(points)[0])
+    assert np.array_equal(tree.locate(points)[0], (points[:, 2] > 0.25 * 34_999.5).astype(int))
 
 
 @pytest.mark.parametrize("labels", [np.zeros((3, 3)), -np.ones((2, 2, 2), int), np.zeros((2, 2, 2))])

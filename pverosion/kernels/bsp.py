@@ -36,6 +36,7 @@ a few percent of a volume of tilted strata.
 from __future__ import annotations
 
 import base64
+import binascii
 import json
 import zlib
 from dataclasses import dataclass
@@ -52,7 +53,7 @@ from pverosion.kernels.surfaces import (
     surface_value,
 )
 
-__all__ = ["BSP_METHODS", "BSPNode", "BSPStats", "BSPTree", "LATTICE_DIRECTIONS", "LatticeBSPTree",
+__all__ = ["BSP_METHODS", "BSPNode", "BSPStats", "BSPTree", "LATTICE_DIRECTIONS", "LEAF", "LatticeBSPTree",
            "build_from_labels", "build_from_triangles"]
 
 BSP_METHODS = ("complete", "simplified", "fitted")
@@ -810,13 +811,18 @@ class LatticeBSPTree:
     @classmethod
     def from_dict(cls, data: dict) -> LatticeBSPTree:
         """Tree from :meth:`to_dict`'s description."""
-        if data.get("format") != cls.FORMAT:
-            raise ValueError(f"not a pverosion lattice BSP description (format {data.get('format')!r})")
-        arrays = {name: _decode(data[name]) for name in ("direction", "value", "right", "directions")}
-        arrays = {name: a.astype(a.dtype.newbyteorder("=")) for name, a in arrays.items()}
-        return cls(arrays["direction"], arrays["value"], arrays["right"],
-                   directions=arrays["directions"].reshape(data["shape"]), origin=data["origin"],
-                   spacing=data["spacing"])
+        if data.get("format") != cls.FORMAT or data.get("version") != 1:
+            raise ValueError(f"not a pverosion lattice BSP description, version 1 (format {data.get('format')!r}, "
+                             f"version {data.get('version')!r})")
+        try:
+            arrays = {name: _decode(data[name]) for name in ("direction", "value", "right", "directions")}
+            arrays = {name: a.astype(a.dtype.newbyteorder("=")) for name, a in arrays.items()}
+            directions = arrays["directions"].reshape(data["shape"])
+            origin, spacing = data["origin"], data["spacing"]
+        except (KeyError, TypeError, ValueError, zlib.error, binascii.Error) as error:
+            raise ValueError(f"damaged lattice BSP description: {error}") from error
+        return cls(arrays["direction"], arrays["value"], arrays["right"], directions=directions, origin=origin,
+                   spacing=spacing)
 
     def to_json(self, path: str | Path) -> Path:
         """Save the tree to a JSON file of its compressed arrays (read by :meth:`BSPTree.from_json` too)."""
