@@ -330,8 +330,8 @@ class BSPTree:
         return path
 
     @classmethod
-    def from_json(cls, path: str | Path) -> BSPTree:
-        """Load a tree written by :meth:`to_json` or :meth:`LatticeBSPTree.to_json` (then one of those)."""
+    def from_json(cls, path: str | Path) -> BSPTree | LatticeBSPTree:
+        """Load a tree written by :meth:`to_json`, or by :meth:`LatticeBSPTree.to_json` (a :class:`LatticeBSPTree`)."""
         data = json.loads(Path(path).read_text(encoding="utf-8"))
         if data.get("format") == LatticeBSPTree.FORMAT:
             return LatticeBSPTree.from_dict(data)
