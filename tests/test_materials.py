@@ -2,7 +2,15 @@ import numpy as np
 import pytest
 from conftest import DATA
 
-from pverosion.kernels.bsp import LATTICE_DIRECTIONS, BSPNode, BSPTree, build_from_labels, build_from_triangles
+from pverosion.kernels.bsp import (
+    LATTICE_DIRECTIONS,
+    LEAF,
+    BSPNode,
+    BSPTree,
+    LatticeBSPTree,
+    build_from_labels,
+    build_from_triangles,
+)
 from pverosion.kernels.materials import (
     BSPMaterials,
     Gradual,
@@ -150,7 +158,9 @@ def test_fitted_tree_splits_a_half_space_with_one_lattice_plane():
         labels = (u[0] * i + u[1] * j + u[2] * k > 4).astype(np.int64)
         tree = build_from_labels(labels, origin=origin, spacing=spacing)
         assert tree.n_nodes == 3 and tree.height == 1
-        normal = tree.params[0, :3]
+        assert np.array_equal(LATTICE_DIRECTIONS[tree.direction[0]], u) and tree.value[0] == 4
+        assert tree.direction[1] == tree.direction[2] == LEAF and tree.value[1:].tolist() == [0, 1]
+        normal = tree.to_bsp_tree().params[0, :3]
         assert np.linalg.norm(normal) == pytest.approx(1.0)
         np.testing.assert_allclose(normal, (u / spacing) / np.linalg.norm(u / spacing), atol=1e-12)
         material, distance = tree.locate(_centres(labels.shape, origin, spacing))
@@ -178,8 +188,8 @@ def test_fitted_tree_is_exact_and_smaller_than_the_volume_on_smooth_data():
     spacing = (0.7, 0.7, 1.1)
     fitted = bsp_from_volume(values, thresholds, spacing=spacing, method="fitted")
     assert np.array_equal(fitted.sample(_centres(values.shape, spacing=spacing)).material_id, reference)
-    assert fitted.stats.tree_bytes < values.nbytes
-    assert fitted.stats.tree_bytes == 24 * fitted.stats.nodes
+    assert fitted.stats.tree_bytes < 0.25 * values.nbytes
+    assert fitted.stats.tree_bytes == fitted.tree.nbytes
     assert fitted.stats.inserted_faces == (fitted.tree.leaf < 0).sum() and fitted.stats.extracted_faces == 0
     complete = bsp_from_volume(values, thresholds, spacing=spacing, method="complete")
     assert fitted.stats.nodes * 10 < complete.stats.nodes
@@ -187,7 +197,8 @@ def test_fitted_tree_is_exact_and_smaller_than_the_volume_on_smooth_data():
     assert agreement < 1.0  # the inserted isosurfaces miss some voxel centres the fitted tree gets right
     # the same input gives the same tree
     again = bsp_from_volume(values, thresholds, spacing=spacing, method="fitted")
-    assert np.array_equal(again.tree.params, fitted.tree.params) and np.array_equal(again.tree.leaf, fitted.tree.leaf)
+    for name in ("direction", "value", "right"):
+        assert np.array_equal(getattr(again.tree, name), getattr(fitted.tree, name))
 
 
 @pytest.mark.parametrize("method", ["fitted", "complete"])
@@ -197,6 +208,11 @@ def test_volume_trees_do_not_depend_on_units(method):
     trees = [bsp_from_volume(values, (80, 150), origin=np.array([1.0, -2.0, 0.5]) * scale,
                              spacing=np.array([0.5, 0.5, 0.8]) * scale, method=method).tree
              for scale in (1e-3, 1.0, 1e3)]
+    if method == "fitted":  # the same lattice nodes; their planes in world units scale with the volume
+        for tree in trees:
+            for name in ("direction", "value", "right"):
+                assert np.array_equal(getattr(tree, name), getattr(trees[1], name))
+        trees = [tree.to_bsp_tree() for tree in trees]
     for tree, scale in zip(trees, (1e-3, 1.0, 1e3)):
         assert np.array_equal(tree.leaf, trees[1].leaf) and np.array_equal(tree.negative, trees[1].negative)
         np.testing.assert_allclose(tree.params[:, :3], trees[1].params[:, :3], atol=1e-12)
@@ -210,6 +226,96 @@ def test_fitted_tree_of_tilted_strata_is_a_few_percent_of_the_volume():
     reference = (strata[..., None] > np.array([30, 90])).sum(axis=-1).ravel()
     assert np.array_equal(field.sample(_centres(strata.shape)).material_id, reference)
     assert field.stats.tree_bytes < 0.05 * strata.nbytes
+
+
+def _assert_compact_tree_locates_like_planes(tree: LatticeBSPTree, shape, *, seed: int) -> None:
+    """The compact layout finds the same leaves as the same tree with float planes and explicit children."""
+    planes = tree.to_bsp_tree()
+    assert planes.n_nodes == tree.n_nodes and planes.height == tree.height
+    box = tree.origin + np.array(shape) * tree.spacing
+    random_points = np.random.default_rng(seed).uniform(tree.origin - 2 * tree.spacing, box, (100_000, 3))
+    for points in (random_points, _centres(shape, tree.origin, tree.spacing)):
+        material, distance = tree.locate(points)
+        expected, expected_distance = planes.locate(points)
+        assert np.array_equal(material, expected)
+        np.testing.assert_allclose(distance, expected_distance, rtol=1e-12, atol=1e-12 * np.abs(box).max())
+
+
+def _smooth_volume(shape=(64, 57, 51)) -> np.ndarray:
+    x, y, z = np.meshgrid(*[np.linspace(-1, 1, n) for n in shape], indexing="ij")
+    return np.clip(255 * (1.2 - np.sqrt(x**2 + 1.3 * y**2 + 0.8 * z**2) + 0.1 * np.sin(3 * x)), 0, 255).astype(np.uint8)
+
+
+def test_compact_fitted_tree_locates_like_its_plane_tree_and_round_trips(tmp_path):
+    i, j, k = np.indices((40, 30, 24))
+    strata = (40 * np.floor((k + 0.3 * i - 0.2 * j) / 6) % 255).astype(np.uint8)
+    rng = np.random.default_rng(5)
+    noisy = (_smooth_volume((30, 28, 26)).astype(float) + rng.normal(0, 25, (30, 28, 26))).clip(0, 255)
+    for values, thresholds, origin, spacing in ((strata, (30, 90), (-5.0, 2.0, 1.0), (0.5, 0.5, 0.8)),
+                                                (noisy, (60, 120, 200), (0.0, 0.0, 0.0), (1.0, 2.0, 3.0))):
+        field = bsp_from_volume(values, thresholds, origin=origin, spacing=spacing, method="fitted")
+        tree = field.tree
+        reference = (values[..., None] > np.array(thresholds)).sum(axis=-1).ravel()
+        assert np.array_equal(field.sample(_centres(values.shape, origin, spacing)).material_id, reference)
+        _assert_compact_tree_locates_like_planes(tree, values.shape, seed=6)
+        # the arrays are the tree: 1 + 2 + 2 bytes a node, the int8 direction table, origin and spacing
+        assert (tree.direction.dtype, tree.value.dtype, tree.right.dtype) == (np.uint8, np.int16, np.uint16)
+        assert tree.nbytes == field.stats.tree_bytes == 5 * tree.n_nodes + LATTICE_DIRECTIONS.size + 6 * 8
+        # inner nodes: the negative child is the next node; leaves hold the materials
+        inner = tree.direction != LEAF
+        assert np.array_equal(tree.leaf >= 0, ~inner) and set(tree.value[~inner]) <= {0, 1, 2, 3}
+        for load in (BSPTree.from_json, LatticeBSPTree.from_json):
+            path = tree.to_json(tmp_path / "tree.json")
+            again = load(path)
+            assert isinstance(again, LatticeBSPTree)
+            for name in ("direction", "value", "right", "directions", "origin", "spacing"):
+                assert np.array_equal(getattr(again, name), getattr(tree, name))
+                assert getattr(again, name).dtype == getattr(tree, name).dtype
+            assert path.stat().st_size < tree.nbytes  # compressed arrays
+            points = _centres(values.shape, origin, spacing) + 0.3
+            assert np.array_equal(BSPMaterials(again, [1.0, 2.0, 3.0, 4.0]).sample(points).material_id,
+                                  tree.locate(points)[0])
+
+
+def test_compact_tree_layout_is_checked():
+    tree = build_from_labels((np.indices((6, 5, 4))[0] > 2).astype(int))
+    arrays = {"direction": tree.direction, "value": tree.value, "right": tree.right}
+    options = {"directions": tree.directions, "origin": tree.origin, "spacing": tree.spacing}
+    LatticeBSPTree(**arrays, **options)
+    for name, bad, match in (("right", np.array([1, 0, 0], np.uint16), "preorder"),
+                             ("right", np.array([3, 0, 0], np.uint16), "preorder"),
+                             ("direction", np.array([LEAF, LEAF, LEAF], np.uint8), "preorder"),
+                             ("direction", np.array([200, LEAF, LEAF], np.uint8), "unknown directions"),
+                             ("value", np.array([2, -1, 1], np.int16), "negative materials"),
+                             ("value", tree.value.astype(np.int64), "dtype|int16")):
+        with pytest.raises(ValueError, match=match):
+            LatticeBSPTree(**{**arrays, name: bad}, **options)
+    with pytest.raises(ValueError, match="spacing > 0"):
+        LatticeBSPTree(**arrays, **{**options, "spacing": (1.0, 0.0, 1.0)})
+    data = tree.to_dict()
+    for damaged in ({**data, "value": {**data["value"], "data": "AAAA"}}, {**data, "shape": [7, 3]},
+                    {k: v for k, v in data.items() if k != "right"}):
+        with pytest.raises(ValueError, match="damaged"):
+            LatticeBSPTree.from_dict(damaged)
+    with pytest.raises(ValueError, match="version 1"):
+        LatticeBSPTree.from_dict({**data, "version": 2})
+
+
+def test_compact_tree_widens_its_integers_when_needed(tmp_path):
+    # plane keys beyond int16 on a long volume; offsets past uint16 behave like the narrow ones
+    labels = (np.arange(40_000) >= 35_000).astype(np.int64).reshape(1, 1, -1)
+    tree = build_from_labels(labels, spacing=(1.0, 1.0, 0.25))
+    assert tree.value.dtype == np.int32 and tree.value[0] == 34_999 and tree.n_nodes == 3
+    centres = _centres(labels.shape, spacing=(1.0, 1.0, 0.25))
+    assert np.array_equal(tree.locate(centres)[0], labels.ravel())
+    wide = LatticeBSPTree(tree.direction, tree.value, tree.right.astype(np.uint32), directions=tree.directions,
+                          origin=tree.origin, spacing=tree.spacing)
+    assert wide.nbytes == tree.nbytes + 2 * tree.n_nodes
+    again = LatticeBSPTree.from_json(wide.to_json(tmp_path / "wide.json"))
+    assert again.right.dtype == np.uint32
+    points = np.random.default_rng(7).uniform(-1, 10_001, (1000, 3))
+    assert np.array_equal(again.locate(points)[0], tree.locate(points)[0])
+    assert np.array_equal(tree.locate(points)[0], (points[:, 2] > 0.25 * 34_999.5).astype(int))
 
 
 @pytest.mark.parametrize("labels", [np.zeros((3, 3)), -np.ones((2, 2, 2), int), np.zeros((2, 2, 2))])
@@ -244,7 +350,18 @@ def test_head_volume_bsp_agrees_with_thresholded_voxels(head):
     fitted = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="fitted")
     assert np.array_equal(fitted.sample(centres).material_id, reference)
     complete = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="complete", seed=3)
-    assert fitted.stats.tree_bytes * 20 < complete.stats.tree_bytes
+    assert fitted.stats.tree_bytes * 100 < complete.stats.tree_bytes
+
+
+def test_head_volume_fitted_tree_is_smaller_than_the_volume_in_memory_and_on_disk(head, tmp_path):
+    thresholds = (40, 100, 160)
+    reference = (head[..., None] > np.array(thresholds)).sum(axis=-1).ravel()
+    fitted = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="fitted")
+    tree = fitted.tree
+    assert fitted.stats.tree_bytes == tree.nbytes <= head.nbytes
+    assert np.mean(fitted.sample(_centres(head.shape, spacing=(4, 4, 4))).material_id == reference) >= 0.999
+    assert tree.to_json(tmp_path / "head.json").stat().st_size <= head.nbytes
+    _assert_compact_tree_locates_like_planes(tree, head.shape, seed=4)
 
 
 def test_bad_input_is_named():

@@ -35,6 +35,16 @@ def test_filter_builds_from_an_image_and_reports_agreement(tmp_path):
         MaterialsFromVolume(thresholds="low, high").run(image)
 
 
+def test_fitted_tree_file_is_compact_and_resamples_alike(tmp_path):
+    image = _ball_image()
+    path = tmp_path / "fitted.json"
+    out = pv.wrap(MaterialsFromVolume(thresholds="0.2, 0.6", method="fitted", tree_file=str(path)).run(image))
+    assert out.field_data["agreement"][0] == 1.0
+    assert path.stat().st_size < out.field_data["bsp_bytes"][0] < out.field_data["volume_bytes"][0]
+    resampled = pverosion.sample_materials(str(path), dimensions=(20, 20, 20), bounds=image.bounds)
+    assert np.array_equal(resampled["material_id"], out["material_id"])
+
+
 def test_sampler_points_and_cells_and_accessor():
     field = BSPMaterials.split(Sphere((0.0, 0.0, 0.0), 0.5), 0, 1, [3.0, 1.0])
     points = pverosion.sample_materials(field, dimensions=(11, 11, 11))

@@ -25,13 +25,20 @@ leaves the purest children (least Gini impurity of the labels on each side,
 a cost found for every plane of a direction by one sweep over a histogram),
 until every leaf holds one label. The tree then gives every voxel centre its
 label exactly; its size grows with the area of the material boundaries in
-voxels (about 2.5x the bytes of the 48 x 62 x 42 MR head, whose boundaries
-are noisy; a few percent of a volume of tilted strata).
+voxels. It is held as a :class:`LatticeBSPTree`: nodes in depth-first order
+(the negative child is the next node), each a direction index (1 byte), a
+plane offset or leaf material (2 bytes) and the offset of the positive child
+(2 bytes), so 5 bytes a node where a general plane node takes 96: about half
+the bytes of the 8-bit 48 x 62 x 42 MR head, whose boundaries are noisy, and
+a few percent of a volume of tilted strata.
 """
 
 from __future__ import annotations
 
+import base64
+import binascii
 import json
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -46,8 +53,8 @@ from pverosion.kernels.surfaces import (
     surface_value,
 )
 
-__all__ = ["BSP_METHODS", "BSPNode", "BSPStats", "BSPTree", "LATTICE_DIRECTIONS", "build_from_labels",
-           "build_from_triangles"]
+__all__ = ["BSP_METHODS", "BSPNode", "BSPStats", "BSPTree", "LATTICE_DIRECTIONS", "LEAF", "LatticeBSPTree",
+           "build_from_labels", "build_from_triangles"]
 
 BSP_METHODS = ("complete", "simplified", "fitted")
 """Accepted values of the ``method`` option of the automated build."""
@@ -67,7 +74,12 @@ class BSPNode:
 
 @dataclass(frozen=True)
 class BSPStats:
-    """Statistics of an automated build (thesis Tables 11.1–11.2)."""
+    """Statistics of an automated build (thesis Tables 11.1–11.2).
+
+    ``tree_bytes``: for C-BSP and S-BSP, :data:`NODE_BYTES` per node as the
+    thesis counts them; for the fitted tree, the real bytes of its arrays
+    (:attr:`LatticeBSPTree.nbytes`). ``volume_bytes``: the input volume's.
+    """
 
     method: str
     extracted_faces: int
@@ -147,6 +159,26 @@ def _morton_order(points: np.ndarray) -> np.ndarray:
         for axis in range(3):
             code |= ((cells[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
     return np.argsort(code, kind="stable")
+
+
+def _points_array(points) -> np.ndarray:
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise ValueError(f"points must have shape (N, 3); got {pts.shape}")
+    return pts
+
+
+def _in_space_order(pts: np.ndarray, kernel) -> tuple[np.ndarray, np.ndarray]:
+    """``kernel(pts)`` -> (material, distance), run on large point sets in Morton order.
+
+    Nearby points follow nearby paths: visiting them together keeps the nodes cached.
+    """
+    if len(pts) < 65536:
+        return kernel(pts)
+    order = _morton_order(pts)
+    material, distance = kernel(pts[order])
+    material[order], distance[order] = material.copy(), distance.copy()
+    return material, distance
 
 
 class BSPTree:
@@ -258,23 +290,13 @@ class BSPTree:
             distance to the nearest bounding plane for plane trees), which
             drives gradual materials.
         """
-        pts = np.ascontiguousarray(points, dtype=np.float64)
-        if pts.ndim != 2 or pts.shape[1] != 3:
-            raise ValueError(f"points must have shape (N, 3); got {pts.shape}")
+        pts = _points_array(points)
         if self.user:
             return self._locate_by_level(pts)
-        if len(pts) < 65536:
-            order = None
-        else:  # nearby points follow nearby paths: visit them together so the nodes stay cached
-            order = _morton_order(pts)
-            pts = pts[order]
         if self._planes is not None:
-            material, distance = _locate_planes(pts, self._planes, self._children, self.leaf)
-        else:
-            material, distance = _locate(pts, self.kind, self.params, self.negative, self.positive, self.leaf)
-        if order is not None:
-            material[order], distance[order] = material.copy(), distance.copy()
-        return material, distance
+            return _in_space_order(pts, lambda p: _locate_planes(p, self._planes, self._children, self.leaf))
+        return _in_space_order(pts, lambda p: _locate(p, self.kind, self.params, self.negative, self.positive,
+                                                      self.leaf))
 
     def _locate_by_level(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Level-synchronous location: every surface evaluated once per level on all its points."""
@@ -308,12 +330,19 @@ class BSPTree:
         return path
 
     @classmethod
-    def from_json(cls, path: str | Path) -> BSPTree:
-        """Load a tree written by :meth:`to_json`."""
+    def from_json(cls, path: str | Path) -> BSPTree | LatticeBSPTree:
+        """Load a tree written by :meth:`to_json`, or by :meth:`LatticeBSPTree.to_json` (a :class:`LatticeBSPTree`)."""
         data = json.loads(Path(path).read_text(encoding="utf-8"))
+        if data.get("format") == LatticeBSPTree.FORMAT:
+            return LatticeBSPTree.from_dict(data)
         if data.get("format") != "pverosion-bsp":
             raise ValueError(f"{path} is not a pverosion BSP file")
         return cls(data["kind"], data["params"], data["negative"], data["positive"], data["leaf"])
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the arrays that define the tree (kind, params, children, leaves)."""
+        return sum(a.nbytes for a in (self.kind, self.params, self.negative, self.positive, self.leaf))
 
 
 def split(surface: ImplicitSurface, negative: int, positive: int) -> BSPTree:
@@ -597,8 +626,221 @@ def _fit(keys, labels, n_class):
     return direction[:n_nodes].copy(), key[:n_nodes].copy(), children[:n_nodes].copy(), leaf[:n_nodes].copy()
 
 
-def build_from_labels(labels: np.ndarray, *, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)) -> BSPTree:
-    """Grow a plane BSP tree that gives every voxel centre of ``labels`` its label.
+LEAF = 255
+"""Direction code of a leaf in :class:`LatticeBSPTree` (inner nodes hold a direction index < 255)."""
+
+
+@njit(cache=True, error_model="numpy", parallel=True)
+def _locate_lattice(points, origin, inv_spacing, directions, inv_norm, direction, value, right):
+    """Lattice trees in preorder: a node's negative child is the next node, its positive child ``right`` on."""
+    n = points.shape[0]
+    material = np.empty(n, np.int64)
+    distance = np.empty(n)
+    for i in prange(n):
+        gx = (points[i, 0] - origin[0]) * inv_spacing[0]  # lattice coordinates
+        gy = (points[i, 1] - origin[1]) * inv_spacing[1]
+        gz = (points[i, 2] - origin[2]) * inv_spacing[2]
+        node = 0
+        nearest = np.inf
+        while direction[node] != LEAF:
+            u = direction[node]
+            g = directions[u, 0] * gx + directions[u, 1] * gy + directions[u, 2] * gz - (value[node] + 0.5)
+            nearest = min(nearest, abs(g) * inv_norm[u])
+            node = node + 1 if g < 0.0 else node + right[node]
+        material[i] = value[node]
+        distance[i] = nearest
+    return material, distance
+
+
+@njit(cache=True)
+def _preorder_height(direction, right):
+    """Height of a preorder tree, or -1 when the offsets do not describe one tree over all nodes."""
+    n = direction.shape[0]
+    pending = np.empty(n, np.int64)  # positive children still to visit, and their depths
+    pending_depth = np.empty(n, np.int64)
+    top = 0
+    depth = 0
+    height = 0
+    for node in range(n):
+        if direction[node] != LEAF:
+            child = node + np.int64(right[node])
+            if child <= node + 1 or child >= n:
+                return -1
+            pending[top] = child
+            pending_depth[top] = depth + 1
+            top += 1
+            depth += 1
+        else:
+            height = max(height, depth)
+            if top == 0:
+                return height if node == n - 1 else -1
+            top -= 1
+            if pending[top] != node + 1:
+                return -1
+            depth = pending_depth[top]
+    return -1
+
+
+def _encode(array: np.ndarray) -> dict:
+    return {"dtype": array.dtype.str, "data": base64.b64encode(zlib.compress(array.tobytes(), 9)).decode("ascii")}
+
+
+def _decode(entry: dict) -> np.ndarray:
+    return np.frombuffer(zlib.decompress(base64.b64decode(entry["data"])), dtype=np.dtype(entry["dtype"]))
+
+
+class LatticeBSPTree:
+    """A BSP tree of lattice planes in a compact preorder layout (the trees of :func:`build_from_labels`).
+
+    Nodes are stored depth first, so the negative child of an inner node is
+    the node right after it and only the positive child's offset is stored.
+    Inner node ``k`` splits by the plane ``u . (x - origin) / spacing =
+    value[k] + 1/2`` with ``u = directions[direction[k]]`` (lower side
+    negative); a leaf has ``direction[k] == 255`` and material id
+    ``value[k]``. These arrays are the tree: :attr:`nbytes` counts them all,
+    :meth:`locate` walks them, :meth:`to_json` saves them.
+
+    Parameters
+    ----------
+    direction : numpy.ndarray, shape (n,), uint8
+        Index into ``directions`` of each inner node, 255 for leaves.
+    value : numpy.ndarray, shape (n,), int16 or int32
+        Plane key of inner nodes, material id (>= 0) of leaves.
+    right : numpy.ndarray, shape (n,), uint16 or uint32
+        Offset from an inner node to its positive child (0 for leaves).
+    directions : numpy.ndarray, shape (d, 3), int8
+        Integer plane normals in voxel index space (d < 255).
+    origin, spacing : array_like, shape (3,)
+        World position of voxel (0, 0, 0) and the voxel size.
+
+    Raises
+    ------
+    ValueError
+        Arrays of other shapes or dtypes, or offsets that do not describe one
+        preorder tree over all nodes.
+    """
+
+    FORMAT = "pverosion-lattice-bsp"
+
+    def __init__(self, direction, value, right, *, directions, origin, spacing) -> None:
+        self.direction = np.ascontiguousarray(direction)
+        self.value = np.ascontiguousarray(value)
+        self.right = np.ascontiguousarray(right)
+        self.directions = np.ascontiguousarray(directions)
+        self.origin = np.ascontiguousarray(origin, dtype=np.float64).reshape(3)
+        self.spacing = np.ascontiguousarray(spacing, dtype=np.float64).reshape(3)
+        n = len(self.direction)
+        if (self.direction.dtype != np.uint8 or self.value.dtype not in (np.int16, np.int32)
+                or self.right.dtype not in (np.uint16, np.uint32) or self.directions.dtype != np.int8):
+            raise ValueError("lattice tree arrays must be direction uint8, value int16/int32, right uint16/uint32, "
+                             f"directions int8; got {self.direction.dtype}, {self.value.dtype}, {self.right.dtype}, "
+                             f"{self.directions.dtype}")
+        if n == 0 or self.value.shape != (n,) or self.right.shape != (n,) or self.direction.ndim != 1:
+            raise ValueError(f"lattice tree arrays must be 1-D with the same length > 0; got {self.direction.shape}, "
+                             f"{self.value.shape}, {self.right.shape}")
+        if self.directions.ndim != 2 or self.directions.shape[1] != 3 or not 0 < len(self.directions) < LEAF:
+            raise ValueError(f"directions must have shape (d, 3) with 0 < d < 255; got {self.directions.shape}")
+        if not (np.isfinite(self.origin).all() and np.isfinite(self.spacing).all() and (self.spacing > 0).all()):
+            raise ValueError(f"origin must be finite and spacing > 0; got {self.origin.tolist()}, "
+                             f"{self.spacing.tolist()}")
+        leaf = self.direction == LEAF
+        if np.any(self.direction[~leaf] >= len(self.directions)) or np.any(self.value[leaf] < 0):
+            raise ValueError("lattice tree nodes name unknown directions or negative materials")
+        self.height = int(_preorder_height(self.direction, self.right))
+        if self.height < 0:
+            raise ValueError("lattice tree offsets do not describe one preorder tree over all nodes")
+        normal = self.directions / self.spacing  # world normal of each direction
+        self._inv_norm = 1.0 / np.linalg.norm(normal, axis=1)
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes (inner and leaves)."""
+        return len(self.direction)
+
+    @property
+    def leaf(self) -> np.ndarray:
+        """Material id of each leaf, -1 for inner nodes, shape (n,), int64 (derived, as :attr:`BSPTree.leaf`)."""
+        return np.where(self.direction == LEAF, self.value, -1).astype(np.int64)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of every array that defines the tree (nodes, direction table, origin and spacing)."""
+        return sum(a.nbytes for a in (self.direction, self.value, self.right, self.directions, self.origin,
+                                      self.spacing))
+
+    def locate(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """Material id of the leaf containing each point, and the distance to the nearest plane on its path.
+
+        Parameters
+        ----------
+        points : array_like, shape (N, 3)
+
+        Returns
+        -------
+        material_id : numpy.ndarray, shape (N,), int64
+        distance : numpy.ndarray, shape (N,)
+            Smallest distance, in world units, to the splitting planes on the point's path.
+        """
+        pts = _points_array(points)
+        return _in_space_order(pts, lambda p: _locate_lattice(
+            p, self.origin, 1.0 / self.spacing, self.directions.astype(np.float64), self._inv_norm,
+            self.direction, self.value, self.right))
+
+    def to_bsp_tree(self) -> BSPTree:
+        """The same tree with a general plane (unit normal, offset in world units) in every node."""
+        n = self.n_nodes
+        inner = self.direction != LEAF
+        index = np.arange(n)
+        normal = self.directions[np.where(inner, self.direction, 0)] / self.spacing
+        offset = -(normal @ self.origin) - (self.value + 0.5)  # u . (x - origin) / spacing - (value + 1/2)
+        scale = np.linalg.norm(normal, axis=1)
+        params = np.zeros((n, N_PARAMS))
+        params[inner, :3] = normal[inner] / scale[inner, None]
+        params[inner, 3] = offset[inner] / scale[inner]
+        negative = np.where(inner, index + 1, -1)
+        positive = np.where(inner, index + self.right.astype(np.int64), -1)
+        return BSPTree(np.full(n, PLANE), params, negative, positive, self.leaf)
+
+    def to_dict(self) -> dict:
+        """JSON-ready description: the arrays' raw little-endian bytes, zlib-compressed and base64-encoded."""
+        return {"format": self.FORMAT, "version": 1, "origin": self.origin.tolist(), "spacing": self.spacing.tolist(),
+                **{name: _encode(getattr(self, name).astype(getattr(self, name).dtype.newbyteorder("<")))
+                   for name in ("direction", "value", "right", "directions")},
+                "shape": list(self.directions.shape)}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> LatticeBSPTree:
+        """Tree from :meth:`to_dict`'s description."""
+        if data.get("format") != cls.FORMAT or data.get("version") != 1:
+            raise ValueError(f"not a pverosion lattice BSP description, version 1 (format {data.get('format')!r}, "
+                             f"version {data.get('version')!r})")
+        try:
+            arrays = {name: _decode(data[name]) for name in ("direction", "value", "right", "directions")}
+            arrays = {name: a.astype(a.dtype.newbyteorder("=")) for name, a in arrays.items()}
+            directions = arrays["directions"].reshape(data["shape"])
+            origin, spacing = data["origin"], data["spacing"]
+        except (KeyError, TypeError, ValueError, zlib.error, binascii.Error) as error:
+            raise ValueError(f"damaged lattice BSP description: {error}") from error
+        return cls(arrays["direction"], arrays["value"], arrays["right"], directions=directions, origin=origin,
+                   spacing=spacing)
+
+    def to_json(self, path: str | Path) -> Path:
+        """Save the tree to a JSON file of its compressed arrays (read by :meth:`BSPTree.from_json` too)."""
+        from pverosion.io import atomic_path
+
+        path = Path(path)
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps(self.to_dict()), encoding="utf-8")
+        return path
+
+    @classmethod
+    def from_json(cls, path: str | Path) -> LatticeBSPTree:
+        """Load a tree written by :meth:`to_json`."""
+        return cls.from_dict(json.loads(Path(path).read_text(encoding="utf-8")))
+
+
+def build_from_labels(labels: np.ndarray, *, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)) -> LatticeBSPTree:
+    """Grow a lattice BSP tree that gives every voxel centre of ``labels`` its label.
 
     Parameters
     ----------
@@ -609,13 +851,12 @@ def build_from_labels(labels: np.ndarray, *, origin=(0.0, 0.0, 0.0), spacing=(1.
 
     Returns
     -------
-    BSPTree
-        Planes between voxel centres along :data:`LATTICE_DIRECTIONS`
-        (unit normals, so the location distance is in world units); the
-        material of voxel ``(i, j, k)`` is found at
-        ``origin + (i, j, k) * spacing``. The tree is the same for any
-        thread count: it is grown serially, ties going to the first
-        direction and the lowest plane.
+    LatticeBSPTree
+        Planes between voxel centres along :data:`LATTICE_DIRECTIONS`, in
+        the compact preorder layout (about 5 bytes a node); the material of
+        voxel ``(i, j, k)`` is found at ``origin + (i, j, k) * spacing``. The
+        tree is the same for any thread count: it is grown serially, ties
+        going to the first direction and the lowest plane.
 
     Raises
     ------
@@ -634,12 +875,14 @@ def build_from_labels(labels: np.ndarray, *, origin=(0.0, 0.0, 0.0), spacing=(1.
     keys = np.ascontiguousarray(grid @ LATTICE_DIRECTIONS.T)
     direction, key, children, leaf = _fit(keys, np.ascontiguousarray(lab.ravel(), dtype=np.int64),
                                           int(lab.max()) + 1)
-    inner = leaf < 0
-    normal = LATTICE_DIRECTIONS[np.maximum(direction, 0)] / spacing  # u . (x - origin) / spacing = key + 1/2
-    offset = -(normal @ origin) - (key + 0.5)
-    scale = np.linalg.norm(normal, axis=1)
-    params = np.zeros((len(leaf), N_PARAMS))
-    params[inner, :3] = normal[inner] / scale[inner, None]
-    params[inner, 3] = offset[inner] / scale[inner]
-    tree = BSPTree(np.full(len(leaf), PLANE), params, children[:, 0], children[:, 1], leaf)
-    return tree.preordered()
+    order = _preorder(children[:, 0], children[:, 1], leaf)  # negative child right after its parent
+    new_id = np.empty(len(order), np.int64)
+    new_id[order] = np.arange(len(order))
+    inner = leaf[order] < 0
+    value = np.where(inner, key[order], leaf[order])
+    right = np.where(inner, new_id[children[order, 1]] - np.arange(len(order)), 0)
+    value_type = np.int16 if np.abs(value).max() <= np.iinfo(np.int16).max else np.int32
+    right_type = np.uint16 if right.max() <= np.iinfo(np.uint16).max else np.uint32
+    return LatticeBSPTree(np.where(inner, direction[order], LEAF).astype(np.uint8), value.astype(value_type),
+                          right.astype(right_type), directions=LATTICE_DIRECTIONS.astype(np.int8), origin=origin,
+                          spacing=spacing)
