@@ -32,7 +32,7 @@ __all__ = ["STAGES", "LiveSession", "interactive"]
 
 
 class _Halt(Exception):
-    """Raised after an iteration to leave the solver's run() when the session pauses."""
+    """Raised after an iteration to leave the solver's run() when the live view pauses."""
 
 STAGES = ("hydraulic", "weather")
 """Stages that run live."""
@@ -257,7 +257,7 @@ class LiveSession:
             raise self.error
 
     def reset(self) -> None:
-        """Back to the input mesh, without water or brushes; a running session goes on running."""
+        """Back to the input mesh, without water or brushes; a running live view goes on running."""
         running = not self.paused
         self.pause()
         with self._lock:

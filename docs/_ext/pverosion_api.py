@@ -58,12 +58,15 @@ def _assignments(module) -> dict[str, bool]:
     lines = source.splitlines()
     tree = ast.parse(source)
     found = {}
-    for index, node in enumerate(tree.body):
+    # top-level statements, and those of top-level ``if`` blocks (``if TYPE_CHECKING:`` declares the
+    # names a module's ``__getattr__`` creates lazily)
+    body = [node for top in tree.body for node in ([top, *top.body, *top.orelse] if isinstance(top, ast.If) else [top])]
+    for index, node in enumerate(body):
         targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(
             node, ast.AnnAssign) else []
         if not targets:
             continue
-        after = tree.body[index + 1] if index + 1 < len(tree.body) else None
+        after = body[index + 1] if index + 1 < len(body) else None
         documented = (isinstance(after, ast.Expr) and isinstance(after.value, ast.Constant)
                       and isinstance(after.value.value, str))
         documented |= node.lineno >= 2 and lines[node.lineno - 2].strip().startswith("#:")
