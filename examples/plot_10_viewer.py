@@ -28,12 +28,9 @@ with TimeSeriesWriter(folder / "weathering.pvd") as series:
 
 # %%
 # The viewer is a :class:`pyvista.Plotter`: every widget calls a public method, so a script
-# drives it the same way a click does. A movie renders every step, so it gets a viewer of its own.
-movie = pverosion.view(folder / "weathering.pvd", off_screen=True, scalars="erosion_depth")
-record_movie(movie, folder / "weathering.gif", fps=8, orbit=True)
-movie.close()
-
+# drives it the same way a click does.
 plotter = pverosion.view(folder / "weathering.pvd", off_screen=True, scalars="erosion_depth")
+record_movie(plotter, folder / "weathering.gif", fps=8, orbit=True)
 plotter.set_step(len(plotter.series) - 1)
 plotter.save_screenshot(folder / "weathering_last.png")
 print(sorted(path.name for path in folder.iterdir()))

@@ -606,6 +606,7 @@ def record_movie(viewer: SeriesViewer, path: str | os.PathLike, *, fps: float = 
         finally:
             viewer.mwriter.close()
             viewer.mwriter = None
+            viewer._gif_filename = None  # nothing is left open (PyVista's gallery scraper would move the file)
     return path
 
 
