@@ -117,9 +117,9 @@ def weather(
         cut the mesh along the intersection curves and go on (a wall eroded
         through opens a hole), or nothing.
     normalization : {"scale_free", "paper"}, default: "scale_free"
-        Divide H by max |H| over the interior vertices (independent of units;
+        Divide H by ``max |H|`` over the interior vertices (independent of units;
         open scans erode like closed ones), or the paper's rule (only when
-        max |H| > 1, over all vertices); see docs/topics/invariance-erosion.md.
+        ``max |H| > 1``, over all vertices); see docs/topics/invariance-erosion.md.
 
     Returns
     -------

@@ -36,7 +36,7 @@ def normalize_symmetric(values, *, where=None, always: bool = False) -> np.ndarr
 
     Used by weathering. By default (``always=False``) values that already lie
     in ``<-1, 1>`` are returned unchanged, as in the paper (rescaling a nearly
-    flat scene would blow up noise); as |H| scales with 1 / length, that rule
+    flat scene would blow up noise); as ``|H|`` scales with 1 / length, that rule
     depends on the model's units. ``always=True`` divides by H whatever its
     size, which makes the result independent of the units.
 

@@ -97,12 +97,12 @@ class WeatheringSolver(GuardedMeshSolver):
         last two evaluated every step so that erosion follows the material
         under each vertex *now*.
     normalization : {"scale_free", "paper"}, default: "scale_free"
-        ``"scale_free"``: H is divided by max |H| over the interior vertices
+        ``"scale_free"``: H is divided by ``max |H|`` over the interior vertices
         (not fixed boundary vertices nor their one-ring) at every step, so the
         same model in other units gives the same points up to scale, and an
         open scan erodes as the closed model. ``"paper"``: the paper's rule,
-        max |H| over all vertices and only when it exceeds 1 (depends on the
-        units; an open rim's large |H| slows the whole scan down).
+        ``max |H|`` over all vertices and only when it exceeds 1 (depends on the
+        units; an open rim's large ``|H|`` slows the whole scan down).
     min_edge_ratio, check_every, max_halvings, orientation, repair
         Mesh improvement and self-intersection guard, see
         :class:`~pverosion.kernels.mesh_evolution.GuardedMeshSolver`.
