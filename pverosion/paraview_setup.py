@@ -216,7 +216,8 @@ def add_parser(subparsers) -> None:
     run.add_argument("--no-warm", dest="warm", action="store_false",
                      help="skip compiling the kernels in ParaView's Python now (the first use does it)")
     run.set_defaults(func=_run_setup)
-    path = commands.add_parser("plugin-path", help="print the folder of the ParaView plugin file")
+    path = commands.add_parser("plugin-path",
+                               help="print the path of the ParaView plugin file (its folder goes on PV_PLUGIN_PATH)")
     path.set_defaults(func=_run_plugin_path)
 
 

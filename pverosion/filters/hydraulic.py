@@ -153,7 +153,7 @@ class HydraulicErosion(MeshSolverFilter):
         Param("normalization", "scale_free", "Curvature range H_min..H_max over the interior vertices (scale_free: "
               "open scans) or over all vertices (paper); curvature model.", choices=SOLVER_NORMALIZATIONS),
         Param("influence", 1.0, "Region of influence d_influence of a particle (from its surface), in average "
-              "edge lengths.", minimum=1e-6),
+              "edge lengths (curvature model).", minimum=1e-6),
         Param("erosion_rate", 1e-3, "k of the erosion rate k (tau - tau_c)^a (sediment model).", minimum=0.0),
         Param("critical_stress", 5.0, "Critical shear stress tau_c (sediment model).", minimum=0.0),
         Param("stress_constant", 1.0, "K of the shear stress K theta^m (sediment model).", minimum=0.0),

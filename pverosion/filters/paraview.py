@@ -130,8 +130,8 @@ def _request_data(filter_cls: type[ErosionFilter]):
             report_error(error, f"pverosion {filter_cls.LABEL}: invalid option {filter_cls.param(name).camel}")
             return 0
         status = filter_cls.RequestData(self, request, in_info, out_info)
-        if not status and self._error is not None:
-            report_error(self._error, f"pverosion {filter_cls.LABEL} failed")
+        if not status and self.last_error is not None:
+            report_error(self.last_error, f"pverosion {filter_cls.LABEL} failed")
         return status
     return RequestData
 

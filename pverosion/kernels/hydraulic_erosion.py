@@ -21,9 +21,13 @@ models:
     Each colliding particle sees the shear rate ``θ = |v_t| / d`` (tangential
     velocity over its distance to the contact face), the shear stress
     τ = K θ^m and the erosion rate ε = k (τ - τ_c)^a. Above τ_c the particle
-    picks up ``ε dt π r²`` of volume from the contact face's vertices (those
-    within ``d_influence`` of its surface); below τ_c it drops
-    ``min(carried, k (τ_c - τ)^a dt π r²)`` onto them. Each vertex then moves
+    picks up ``ε dt π r²`` of volume from its contact footprint; below τ_c it
+    drops ``min(carried, k (τ_c - τ)^a dt π r²)`` onto it. The footprint is
+    the vertices within r of the contact point, reached along edges from the
+    contact face's corners, each taking a share proportional to its area
+    times ``1 - (d / r)²`` (the face's corners by barycentric weight when no
+    vertex is that close); fixed and frozen vertices take no share, and a
+    vertex gives its share times its erodibility. Each vertex then moves
     along its area-weighted normal by exactly the displacement that changes
     the enclosed volume by its sediment balance (eq. 8.7: the volume of a
     vertex's fan is linear in the vertex's displacement, ``ΔV = t |G| / 6``
@@ -52,11 +56,11 @@ from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels.curvature import CurvatureTracker
-from pverosion.kernels.geometry import average_edge_length
+from pverosion.kernels.geometry import average_edge_length, point_areas
 from pverosion.kernels.laplacian import laplacian_vectors
 from pverosion.kernels.mesh_evolution import GuardedMeshSolver, volume_area
 from pverosion.kernels.normalize import SOLVER_NORMALIZATIONS, normalize_shifted
-from pverosion.kernels.particle_fluid import FluidParameters, ParticleFluid
+from pverosion.kernels.particle_fluid import FluidParameters, ParticleFluid, _closest_on_boundary, _over
 from pverosion.kernels.topology import vertex_face_incidence
 from pverosion.kernels.weathering import Erodibility, check_erodibility, erodibility_now
 
@@ -227,64 +231,143 @@ def _curvature_displace(points, normals, lap, h, h_norm, h_min, h_max, factor, p
 
 
 @njit(cache=True, error_model="numpy")
-def _exchange(points, faces, pos, vel, contact_face, contact_distance, sediment, pending, movable, erodibility,
-              reach, dt, area, d_min, k, tau_c, big_k, m, a):
-    """Erosion/deposition between colliding particles and their contact faces' vertices (in particle order).
+def _footprint(points, faces, ring_ptr, ring_idx, areas, movable, f, centre, radius, stamp, mark, queue, weights):
+    """Vertices sharing a particle's exchange and their weights; returns how many (stored in ``queue[:n]`` with
+    ``weights[:n]``, summing to at most 1), 0 when none can move.
 
-    Only vertices within ``reach`` of the particle's centre take part. Updates ``sediment`` (N,) and ``pending``
-    (V,) in place; returns (eroded, deposited) volumes.
+    The footprint is the surface within ``radius`` of ``centre`` (the particle's contact point, a point of face
+    ``f``), walked from the face's corners along edges; a vertex's weight is its area times
+    ``1 - (d / radius)²``. A footprint holding no vertex (a particle smaller than the face) falls back to the
+    face's corners weighted by the contact point's barycentric coordinates. The shares of vertices that cannot
+    move (fixed or frozen) are left out rather than handed to the others, so the particle exchanges less
+    instead of drilling the movable vertices next to a frozen patch. ``stamp`` (V,) holds the last ``mark``
+    that visited each vertex.
+    """
+    n_queue = 0
+    for c in range(3):
+        v = faces[f, c]
+        if stamp[v] != mark:
+            stamp[v] = mark
+            queue[n_queue] = v
+            n_queue += 1
+    n_seeds = n_queue
+    r2 = radius * radius
+    n_in = 0
+    head = 0
+    while head < n_queue:
+        v = queue[head]
+        head += 1
+        d2 = 0.0
+        for d in range(3):
+            e = points[v, d] - centre[d]
+            d2 += e * e
+        if d2 <= r2:
+            # queue[:head] only holds visited vertices: keep the footprint's in front of them
+            queue[head - 1] = queue[n_in]
+            queue[n_in] = v
+            weights[n_in] = areas[v] * (1.0 - d2 / r2)
+            n_in += 1
+        elif head > n_seeds:
+            continue  # the walk goes on from the footprint and from the contact face's corners
+        for q in range(ring_ptr[v], ring_ptr[v + 1]):
+            u = ring_idx[q]
+            if stamp[u] != mark:
+                stamp[u] = mark
+                queue[n_queue] = u
+                n_queue += 1
+    if n_in == 0:
+        a = v3.row(points, faces[f, 0])
+        b = v3.row(points, faces[f, 1])
+        c = v3.row(points, faces[f, 2])
+        nrm = v3.cross(v3.sub(b, a), v3.sub(c, a))
+        full = v3.dot(nrm, nrm)
+        for k in range(3):
+            p0 = v3.row(points, faces[f, (k + 1) % 3])
+            p1 = v3.row(points, faces[f, (k + 2) % 3])
+            w = max(v3.dot(v3.cross(v3.sub(p0, centre), v3.sub(p1, centre)), nrm) / full, 0.0)
+            v = faces[f, k]
+            queue[k] = v
+            weights[k] = w
+        n_in = 3
+    total = 0.0
+    for t in range(n_in):
+        total += weights[t]
+    if not total > 0.0:
+        return 0
+    kept = 0
+    for t in range(n_in):
+        if movable[queue[t]] and weights[t] > 0.0:
+            queue[kept] = queue[t]
+            weights[kept] = weights[t] / total
+            kept += 1
+    return kept
+
+
+@njit(cache=True, error_model="numpy")
+def _exchange(points, faces, ring_ptr, ring_idx, areas, pos, vel, contact_face, contact_distance, sediment,
+              pending, movable, erodibility, dt, radius, d_min, k, tau_c, big_k, m, a):
+    """Erosion/deposition between colliding particles and the surface under them (in particle order).
+
+    Each particle's exchange is spread over its contact footprint at the particle ``radius``
+    (:func:`_footprint`). Updates ``sediment`` (N,) and ``pending`` (V,) in place; returns (eroded, deposited)
+    volumes.
     """
     eroded = 0.0
     deposited = 0.0
-    targets = np.empty(3, np.int64)
-    reach2 = reach * reach
+    n_vertices = points.shape[0]
+    stamp = np.full(n_vertices, -1, np.int64)
+    queue = np.empty(n_vertices, np.int64)
+    weights = np.empty(n_vertices)
+    area = math.pi * radius * radius
     for p in range(pos.shape[0]):
         f = contact_face[p]
         if f < 0:
             continue
-        nt = 0
-        er = 0.0
-        for c in range(3):
-            v = faces[f, c]
-            if not movable[v]:
-                continue
-            d2 = 0.0
-            for d in range(3):
-                e = points[v, d] - pos[p, d]
-                d2 += e * e
-            if d2 <= reach2:
-                targets[nt] = v
-                er += erodibility[v]
-                nt += 1
-        if nt == 0:
-            continue
-        er /= nt
         a0 = v3.row(points, faces[f, 0])
         nrm = v3.cross(v3.sub(v3.row(points, faces[f, 1]), a0), v3.sub(v3.row(points, faces[f, 2]), a0))
         size = v3.norm(nrm)
         if size == 0.0:
             continue
         nrm = v3.scale(nrm, 1.0 / size)
+        x = v3.row(pos, p)
+        b0, c0 = v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
+        if _over(x, a0, b0, c0, nrm):  # the contact point: the face's point nearest the particle
+            centre = v3.sub(x, v3.scale(nrm, v3.dot(nrm, v3.sub(x, a0))))
+        else:
+            centre = _closest_on_boundary(x, a0, b0, c0)
+        nt = _footprint(points, faces, ring_ptr, ring_idx, areas, movable, f, centre, radius, stamp, p, queue,
+                        weights)
+        if nt == 0:
+            continue
         u = v3.row(vel, p)
         tangential = v3.sub(u, v3.scale(nrm, v3.dot(u, nrm)))
         theta = v3.norm(tangential) / max(contact_distance[p], d_min)
         tau = big_k * theta**m
         if tau > tau_c:
-            amount = er * k * (tau - tau_c) ** a * dt * area
+            amount = k * (tau - tau_c) ** a * dt * area  # each vertex gives its share times its erodibility
             if amount <= 0.0:
                 continue
-            sediment[p] += amount
-            eroded += amount
+            taken = 0.0
             for t in range(nt):
-                pending[targets[t]] -= amount / nt
+                part = amount * weights[t] * erodibility[queue[t]]
+                pending[queue[t]] -= part
+                taken += part
+            sediment[p] += taken
+            eroded += taken
         else:
             amount = min(sediment[p], k * (tau_c - tau) ** a * dt * area)
             if amount <= 0.0:
                 continue
-            sediment[p] -= amount
-            deposited += amount
+            given = 0.0
             for t in range(nt):
-                pending[targets[t]] += amount / nt
+                part = amount * weights[t]
+                pending[queue[t]] += part
+                given += part
+            if given > sediment[p]:  # the shares' rounding: never drop more than the particle carries
+                pending[queue[nt - 1]] -= given - sediment[p]
+                given = sediment[p]
+            sediment[p] -= given
+            deposited += given
     return eroded, deposited
 
 
@@ -360,7 +443,8 @@ class HydraulicSolver(GuardedMeshSolver):
         x: the largest displacement per iteration is ``e_avg / x`` (both models).
     influence : float, default: 1.0
         d_influence in units of the average edge length, measured from the
-        surface of a colliding particle (its centre plus the radius r).
+        surface of a colliding particle (its centre plus the radius r); the
+        curvature model's reach (and ``f_distance``) only.
     shear : ShearParameters, optional
         Constants of the sediment model.
     erodibility : array_like (V,), callable, MaterialField or None
@@ -537,9 +621,9 @@ class HydraulicSolver(GuardedMeshSolver):
             self.points = _curvature_displace(self.points, curv.normals, lap, h, normalize_shifted(h, where=over),
                                               float(stats.min()), float(stats.max()), factor, self.power,
                                               e_avg / self.step_divisor, self.displacement)
+            moved = factor > 0.0
         else:
-            self._sediment_step(fluid, touching, reach, e_avg)
-        moved = factor > 0.0 if self.model == "curvature" else f > 0.0
+            moved = self._sediment_step(fluid, e_avg)
         if self.min_edge_ratio > 0.0:
             self._improve(self.min_edge_ratio * e_avg, movable=moved & (self.pending == 0.0))
         fluid.set_mesh(self.points, self.faces)
@@ -547,7 +631,8 @@ class HydraulicSolver(GuardedMeshSolver):
         self._stats.append(self._row())
         self._lap("displacement", clock)
 
-    def _sediment_step(self, fluid: ParticleFluid, touching: np.ndarray, reach: float, e_avg: float) -> None:
+    def _sediment_step(self, fluid: ParticleFluid, e_avg: float) -> np.ndarray:
+        """Exchange sediment and move the vertices by their balances; returns the mask (V',) of moved vertices."""
         shear = self.shear
         erod = np.ones(len(self.points))
         if self._erodibility is not None:
@@ -555,14 +640,17 @@ class HydraulicSolver(GuardedMeshSolver):
         movable = ~self._fixed & (self._scale[self.ids] > 0.0)
         r = fluid.params.radius
         eroded, deposited = _exchange(
-            self.points, self.faces, fluid.positions, fluid.velocities, fluid.contact_face, fluid.contact_distance,
-            fluid.sediment, self.pending, movable, erod, reach + r, fluid.dt, math.pi * r * r, 0.25 * r,
-            shear.erosion_rate, shear.critical_stress, shear.stress_constant, shear.stress_power, shear.rate_power)
+            self.points, self.faces, *self._ring, point_areas(self.points, self.faces), fluid.positions,
+            fluid.velocities, fluid.contact_face, fluid.contact_distance, fluid.sediment, self.pending, movable, erod,
+            fluid.dt, r, 0.25 * r, shear.erosion_rate, shear.critical_stress, shear.stress_constant,
+            shear.stress_power, shear.rate_power)
         self.eroded += eroded
         self.deposited += deposited
         cap = (e_avg / self.step_divisor) * self._scale[self.ids] * movable
+        before = self.points
         self.points = self.points.copy()
         _apply_volumes(self.points, self.faces, *self._incidence, self.pending, cap, self.displacement)
+        return np.any(self.points != before, axis=1)
 
     def conservation_error(self) -> float:
         """``|eroded - carried - deposited - drained|`` of the sediment model (0 for exact bookkeeping)."""
