@@ -551,14 +551,21 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     grp = np.zeros(0, np.int64) if group is None else np.asarray(group, dtype=np.int64)
     if group is not None and grp.shape != (len(fcs),):
         raise ValueError(f"group must have shape ({len(fcs)},); got {grp.shape}")
+    wanted = np.zeros(0, bool) if query is None else np.asarray(query, dtype=bool)
+    if query is not None and wanted.shape != (len(fcs),):
+        raise ValueError(f"query must have shape ({len(fcs)},); got {wanted.shape}")
     lo, hi, ok, origin, inv_h, _, n_ok = _face_boxes(pts, fcs)
+    if query is not None and n_ok:
+        # a pair has a queried face: the other face's box meets the box around the queried faces
+        queried = wanted & ok
+        if not queried.any():
+            return np.zeros((0, 2), np.int64)
+        ok = ok & np.all(lo <= hi[queried].max(axis=0), axis=1) & np.all(hi >= lo[queried].min(axis=0), axis=1)
+        n_ok = int(np.count_nonzero(ok))
     if n_ok == 0:
         return np.zeros((0, 2), np.int64)
     size = 4 * n_ok + 1
     start, entries, cells = _build_grid(lo, hi, ok, origin, inv_h, size)
-    wanted = np.zeros(0, bool) if query is None else np.asarray(query, dtype=bool)
-    if query is not None and wanted.shape != (len(fcs),):
-        raise ValueError(f"query must have shape ({len(fcs)},); got {wanted.shape}")
     return _box_pairs(pts, fcs, _face_planes(pts, fcs), lo, hi, ok, grp, wanted, origin, inv_h, start, entries,
                       cells, size)
 
