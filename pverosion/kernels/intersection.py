@@ -422,7 +422,8 @@ def _apart_by_a_plane(points, faces, f, g, shared):
 def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size, f,
                     out, n_out):
     """Faces g whose boxes meet f's box, that share no edge with f, (with groups) are in another group, and
-    that neither lies strictly on one side of the other's plane (apart from a shared vertex): g > f, or with a
+    that neither lies strictly on one side of the other's plane nor of a plane of :func:`_apart_by_a_plane`
+    (apart from a shared vertex): g > f, or with a
     query any g not queried before f. Written to ``out`` as (min, max) from ``n_out`` on when it is large
     enough. Returns the count."""
     fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
@@ -529,7 +530,10 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     other's plane by more than a generous bound of the rounding (so every
     pair that touches in exact arithmetic is kept). Faces that share one
     vertex are kept only when neither has its two other vertices on one side
-    of the other's plane: they may meet beyond the shared vertex.
+    of the other's plane: they may meet beyond the shared vertex. Faces in a
+    common plane (or sharing a vertex) are dropped when a plane through an
+    edge of either, between their centroids, or through the shared vertex
+    has them strictly on its two sides by more than the rounding.
 
     Parameters
     ----------
