@@ -56,7 +56,7 @@ def _pop_load(argv: list[str]) -> tuple[int, list[str]]:
 
 
 def _figure(result, path: str) -> float | None:
-    """The number at dotted ``path`` (list items by index, -1 the last; a list of numbers gives its median); None if absent."""
+    """The number at dotted ``path`` (list items by index, -1 the last); a list gives its median; None if absent."""
     value = result
     for key in path.split("."):
         if isinstance(value, list) and key.lstrip("-").isdigit() and -len(value) <= int(key) < len(value):

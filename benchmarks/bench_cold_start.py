@@ -110,6 +110,7 @@ def _wall(args: list[str], cache: Path, cpu: dict | None = None, key: str = "", 
     if compiled is not None:
         notices = [(int(n), float(t)) for n, t in COMPILED.findall(done.stderr)]
         compiled[key] = {"functions": sum(n for n, _ in notices), "seconds": round(sum(t for _, t in notices), 1)}
+    print(f"{' '.join(args[:3])}: {seconds:.2f} s", file=sys.stderr, flush=True)  # progress of a long run
     return round(seconds, 2)
 
 

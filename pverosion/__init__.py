@@ -68,22 +68,32 @@ def _in_paraview() -> bool:
     return "paraview" in sys.modules or type(sys.stdout).__name__ == "vtkPythonStdStreamCaptureHelper"
 
 
+def _import_keeping_host_window(module: str):
+    """Import ``module``; inside ParaView, keep the host's VTK output window.
+
+    Importing PyVista replaces VTK's output window to send VTK's messages to Python's logging; in
+    ParaView, Python's own output and ParaView's errors go through that window, so the host's stays.
+    """
+    if not _in_paraview():
+        return import_module(module)
+    from vtkmodules.vtkCommonCore import vtkOutputWindow
+
+    host_window = vtkOutputWindow.GetInstance()
+    try:
+        return import_module(module)
+    finally:
+        vtkOutputWindow.SetInstance(host_window)
+
+
+if _in_paraview():  # the plugin's filter modules import PyVista: do it here, under the guard
+    _import_keeping_host_window("pyvista")
+
+
 def __getattr__(name: str):
     module = _LAZY.get(name)
     if module is None:
         raise AttributeError(f"module 'pverosion' has no attribute {name!r}")
-    if not _in_paraview():
-        value = getattr(import_module(module), name)
-    else:
-        # Importing PyVista replaces VTK's output window to send VTK's messages to Python's logging; in
-        # ParaView, Python's own output and ParaView's errors go through that window, so keep the host's.
-        from vtkmodules.vtkCommonCore import vtkOutputWindow
-
-        host_window = vtkOutputWindow.GetInstance()
-        try:
-            value = getattr(import_module(module), name)
-        finally:
-            vtkOutputWindow.SetInstance(host_window)
+    value = getattr(_import_keeping_host_window(module), name)
     globals()[name] = value
     return value
 

@@ -23,7 +23,14 @@ from collections.abc import Iterator, MutableMapping
 from contextlib import ExitStack, contextmanager
 from typing import TextIO
 
-__all__ = ["POINTS_PER_THREAD", "THREAD_ENVIRONMENT", "WORK_NOT_IN_POINTS", "configure_environment", "stage_run", "threads_for"]
+__all__ = [
+    "POINTS_PER_THREAD",
+    "THREAD_ENVIRONMENT",
+    "WORK_NOT_IN_POINTS",
+    "configure_environment",
+    "stage_run",
+    "threads_for",
+]
 
 THREAD_ENVIRONMENT: dict[str, str] = {"OMP_WAIT_POLICY": "PASSIVE", "KMP_BLOCKTIME": "0"}
 """Defaults set by :func:`configure_environment` (OpenMP threads sleep when idle)."""

@@ -111,8 +111,7 @@ def build_parser(*, stages: Collection[str] | None = None) -> argparse.ArgumentP
             cmd.add_argument("--save-every", type=int, metavar="K",
                              help="also save every K-th step (and the last) into the --series collection")
             cmd.add_argument("--series", type=Path, metavar="OUT.pvd",
-                             help="ParaView time series (.pvd) of the saved steps (default: OUT.pvd next to OUT; "
-                             "OUT_series.pvd for a .vtm OUT)")
+                             help="ParaView time series (.pvd) of the saved steps (default: next to OUT)")
         cmd.set_defaults(filter_cls=filter_cls)
     return parser
 
@@ -146,7 +145,7 @@ def _run_time_stage(filter_cls: type[ErosionFilter], mesh, options: dict, args: 
 
 def _check_outputs(args: argparse.Namespace) -> None:
     """Refuse bad output paths and series options before any work is done."""
-    from pverosion.io import check_output_path
+    from pverosion.io import blocks_folder, check_output_path
 
     filter_cls = args.filter_cls
     check_output_path(args.output, filter_cls.OUTPUT_TYPE, what="-o")
@@ -165,18 +164,15 @@ def _check_outputs(args: argparse.Namespace) -> None:
         series = _series_path(args)
         if series.suffix != ".pvd":
             raise ValueError(f"--series {series}: a time series is a .pvd file")
-        if series.with_suffix("").resolve() == args.output.with_suffix("").resolve():
+        if series.with_suffix("").resolve() == blocks_folder(args.output).resolve():
             raise ValueError(f"--series {series} and -o {args.output} would share the folder {series.with_suffix('')}; "
                              "give the series another name")
         check_output_path(series.with_suffix(".vtp"), "vtkPolyData", what="--series")
 
 
 def _series_path(args: argparse.Namespace) -> Path:
-    """``--series``, else OUT.pvd next to the output (OUT_series.pvd beside a .vtm, whose blocks use OUT/)."""
-    if args.series is not None:
-        return args.series
-    out = args.output
-    return out.with_name(f"{out.stem}_series.pvd") if out.suffix.lower() == ".vtm" else out.with_suffix(".pvd")
+    """``--series``, else OUT.pvd next to the output."""
+    return args.series if args.series is not None else args.output.with_suffix(".pvd")
 
 
 def _cli_message(message: str, filter_cls: type[ErosionFilter] | None) -> str:

@@ -6,6 +6,7 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
+from xml.etree import ElementTree
 from xml.sax.saxutils import quoteattr
 
 import pyvista as pv
@@ -16,6 +17,7 @@ __all__ = [
     "OUTPUT_FORMATS",
     "TimeSeriesWriter",
     "atomic_path",
+    "blocks_folder",
     "check_output_path",
     "read_image",
     "read_mesh",
@@ -203,9 +205,10 @@ def write_atomic(dataset: pv.DataObject, path: str | os.PathLike) -> Path:
     """Save ``dataset`` to ``path`` (format by extension) through a temporary file and a rename.
 
     A ``.vtm`` MultiBlock is written with its block folder named after it
-    (``out.vtm`` and ``out/``): both are built in a hidden temporary folder,
-    then the folder replaces the previous one and the ``.vtm`` is renamed
-    last, so no stale or orphaned blocks remain.
+    (``out.vtm`` and ``out_blocks/``, see :func:`blocks_folder`): both are
+    built in a hidden temporary folder, then the folder replaces the previous
+    one and the ``.vtm`` is renamed last, so no stale or orphaned blocks
+    remain.
 
     Parameters
     ----------
@@ -227,6 +230,16 @@ def write_atomic(dataset: pv.DataObject, path: str | os.PathLike) -> Path:
     return path
 
 
+def blocks_folder(path: str | os.PathLike) -> Path:
+    """The folder holding the blocks of the ``.vtm`` file ``path``: ``<stem>_blocks`` beside it.
+
+    It differs from the ``<stem>/`` folder of a ``<stem>.pvd`` series, so a
+    run's final ``.vtm`` and its time series can share a name.
+    """
+    path = Path(path)
+    return path.with_name(f"{path.stem}_blocks")
+
+
 def _write_multiblock(blocks: pv.MultiBlock, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
@@ -235,8 +248,9 @@ def _write_multiblock(blocks: pv.MultiBlock, path: Path) -> None:
         mode = 0o666 & ~_umask()
         for item in work.rglob("*"):
             os.chmod(item, mode | 0o111 if item.is_dir() else mode)
-        folder, built = path.with_suffix(""), work / path.stem
+        folder, built = blocks_folder(path), work / path.stem
         if built.is_dir():
+            _relink(work / path.name, f"{path.stem}/", f"{folder.name}/")
             old = work / ".previous"
             if folder.is_dir():
                 os.replace(folder, old)
@@ -244,6 +258,16 @@ def _write_multiblock(blocks: pv.MultiBlock, path: Path) -> None:
         os.replace(work / path.name, path)
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def _relink(vtm: Path, old: str, new: str) -> None:
+    """Point the ``file`` references of a ``.vtm`` that start with folder ``old`` to folder ``new``."""
+    tree = ElementTree.parse(vtm)
+    for element in tree.iter("DataSet"):
+        name = element.get("file", "")
+        if name.startswith(old):
+            element.set("file", new + name[len(old):])
+    tree.write(vtm, encoding="utf-8", xml_declaration=True)
 
 
 class TimeSeriesWriter:

@@ -89,7 +89,7 @@ def format_bytes(nbytes: float) -> str:
     return f"{value:.1f} PiB"  # pragma: no cover - the loop always returns
 
 
-def check_memory(nbytes: float, *, option: str, what: str) -> None:
+def check_memory(nbytes: float, *, option: str, what: str, remedy: str | None = None) -> None:
     """Refuse a request estimated to need ``nbytes`` bytes when that exceeds :func:`memory_limit`.
 
     Parameters
@@ -100,6 +100,8 @@ def check_memory(nbytes: float, *, option: str, what: str) -> None:
         The option (or options) that set the size, named in the message.
     what : str
         What would be allocated, e.g. ``"the list of 1000000001 time steps"``.
+    remedy : str, optional
+        What the user can do instead (default: ``"lower <option>"``).
 
     Raises
     ------
@@ -111,7 +113,7 @@ def check_memory(nbytes: float, *, option: str, what: str) -> None:
         raise ResourceLimitError(
             f"{option}: {what} would need about {format_bytes(nbytes)}, more than the memory limit of "
             f"{format_bytes(limit)} (half the available memory unless PVEROSION_MEMORY_LIMIT is set); "
-            f"lower {option}, or raise PVEROSION_MEMORY_LIMIT")
+            f"{remedy or f'lower {option}'}, or raise PVEROSION_MEMORY_LIMIT")
 
 
 def check_work(operations: float, *, option: str, what: str) -> None:

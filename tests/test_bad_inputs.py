@@ -265,12 +265,13 @@ def test_vtm_blocks_are_named_after_the_output_and_replaced(tmp_path):
         write_atomic(pv.MultiBlock({"a": pv.Cube()}), tmp_path / "out.vtm")
     finally:
         os.umask(old)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "out.vtm"]
-    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["out_0.vtp"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.vtm", "out_blocks"]
+    assert sorted(p.name for p in (tmp_path / "out_blocks").iterdir()) == ["out_0.vtp"]
     again = pv.read(tmp_path / "out.vtm")
     assert again.n_blocks == 1 and again[0].n_cells == 6
     assert (tmp_path / "out.vtm").stat().st_mode & 0o777 == 0o644
-    assert (tmp_path / "out" / "out_0.vtp").stat().st_mode & 0o777 == 0o644
+    assert (tmp_path / "out_blocks" / "out_0.vtp").stat().st_mode & 0o777 == 0o644
+    assert (tmp_path / "out_blocks").stat().st_mode & 0o777 == 0o755
 
 
 def test_files_honour_the_umask(tmp_path):
@@ -389,3 +390,14 @@ def test_cli_messages_use_cli_syntax():
         == "--time-step: a substep of 5 s; lower --time-step"
     assert _cli_message("iterations must be >= 0; the particle radius is 0", HydraulicErosion) \
         == "--iterations must be >= 0; the particle radius is 0"  # 'radius' in prose stays a word
+
+
+def test_a_run_whose_water_drains_at_once_warns():
+    with pytest.warns(UserWarning, match=r"all \d+ emitted particles were drained or left the domain .* at once"):
+        pverosion.hydraulic_erosion(_sphere(), emitters=EMITTER, drains="box:-1,-1,1.5,1,1,2.5", iterations=3)
+
+
+def test_a_grid_too_large_for_memory_is_refused(monkeypatch):
+    monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "100K")
+    with pytest.raises(ResourceLimitError, match=r"input grid: the solver of 1200 voxels .* use coarser voxels"):
+        pverosion.voxel_erosion(_grid(), iterations=1)

@@ -186,11 +186,11 @@ def test_bad_option_is_reported_and_fails_every_update_until_fixed(plugin):
     alg = plugin.PVErosionWeathering()
     alg.SetInputDataObject(0, pv.Sphere())
     _, text = _captured(lambda: alg.SetPVStepDivisor(-1.0))
-    assert "StepDivisor" in text and "step_divisor must be >= 1e-06; got -1.0" in text
+    assert "StepDivisor" in text and "step_divisor must be >= 1.0; got -1.0" in text
     for iterations in (2, 3):  # another option changed: the update still fails
         alg.SetPVIterations(iterations)
         status, text = _captured(alg.Update)
-        assert "invalid option StepDivisor" in text and "step_divisor must be >= 1e-06" in text
+        assert "invalid option StepDivisor" in text and "step_divisor must be >= 1.0" in text
         assert alg.GetOutputDataObject(0).GetNumberOfPoints() == 0
     alg.SetPVStepDivisor(5.0)
     _, text = _captured(alg.Update)

@@ -115,4 +115,4 @@ def test_cli_writes_the_result_and_the_series(tmp_path, cone, capsys):
     assert pv.get_reader(tmp_path / "out.pvd").time_values == [0.0, 1.0, 2.0]
     assert (tmp_path / "shot.png").stat().st_size > 0
     assert main(["shards", str(src), "-o", str(tmp_path / "bad.vtm"), "--water-direction", "0,0"]) == 2
-    assert "water_direction" in capsys.readouterr().err
+    assert "--water-direction" in capsys.readouterr().err

@@ -90,7 +90,7 @@ def test_bad_grids_and_options_are_named():
     grid = _meander_grid()
     with pytest.raises(ValueError, match="material_amount"):
         VoxelErosion(iterations=1).run(pv.ImageData(dimensions=(4, 4, 4)))
-    with pytest.raises(ValueError, match="source_velocity needs three numbers"):
+    with pytest.raises(ValueError, match="source_velocity needs 3 numbers"):
         VoxelErosion(iterations=1, source_velocity="1,0").run(grid)
     odd = grid.copy()
     odd.spacing = (0.05, 0.05, 0.1)

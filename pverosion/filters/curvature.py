@@ -15,13 +15,9 @@ from pverosion.filters.base import (
 from pverosion.kernels.curvature import principal_curvatures
 from pverosion.kernels.normalize import NORMALIZATIONS, normalize_curvature
 from pverosion.kernels.orientation import ORIENTATIONS, orient_faces
-from pverosion.kernels.topology import spatial_order
 from pverosion.kernels.validation import as_triangle_mesh
 
 __all__ = ["Curvature"]
-
-SPATIAL_ORDER_MIN_POINTS = 100_000
-"""Meshes with at least this many points are reordered along a Morton curve for the computation."""
 
 
 class Curvature(ErosionFilter):
@@ -59,26 +55,20 @@ class Curvature(ErosionFilter):
         """Compute the curvature arrays of ``inp`` into ``out``."""
         points, faces = polydata_triangles(inp)
         points, faces = as_triangle_mesh(points, faces)
-        undo = slice(None)  # large meshes are computed in spatial vertex order, then put back
-        if len(points) >= SPATIAL_ORDER_MIN_POINTS:
-            order = spatial_order(points)
-            undo = np.empty_like(order)
-            undo[order] = np.arange(len(order))
-            points, faces = points[order], undo[faces]
         orientation = orient_faces(points, faces, mode=self.get_option("orientation"))
         self.UpdateProgress(0.3)
         result = principal_curvatures(points, orientation.faces)
         out.ShallowCopy(inp)
         if orientation.n_flipped:
-            replace_triangles(out, orientation.faces if isinstance(undo, slice) else order[orientation.faces])
-        mean = result.mean[undo]
+            replace_triangles(out, orientation.faces)
+        mean = result.mean
         set_point_array(out, "mean_curvature", mean)
-        set_point_array(out, "gaussian_curvature", result.gaussian[undo])
-        set_point_array(out, "k1", result.k1[undo])
-        set_point_array(out, "k2", result.k2[undo])
-        set_point_array(out, "principal_direction_1", result.direction1[undo])
-        set_point_array(out, "principal_direction_2", result.direction2[undo])
-        set_point_array(out, "normals", result.normals[undo])
+        set_point_array(out, "gaussian_curvature", result.gaussian)
+        set_point_array(out, "k1", result.k1)
+        set_point_array(out, "k2", result.k2)
+        set_point_array(out, "principal_direction_1", result.direction1)
+        set_point_array(out, "principal_direction_2", result.direction2)
+        set_point_array(out, "normals", result.normals)
         method = self.get_option("normalization")
         if method != "none":
             set_point_array(out, "mean_curvature_normalized", normalize_curvature(mean, method))

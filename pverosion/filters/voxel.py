@@ -383,7 +383,8 @@ class VoxelErosion(TimeSteppedFilter):
         cells = inp.GetNumberOfPoints()
         if cells == 0:
             raise ValueError("the voxel grid is empty: it has no voxels")
-        check_memory(cells * BYTES_PER_VOXEL, option="input", what=f"the solver of a grid of {cells} voxels")
+        check_memory(cells * BYTES_PER_VOXEL, option="input grid", what=f"the solver of {cells} voxels",
+                     remedy="use coarser voxels")
         solver = voxel_solver(inp, params=params, source_velocity=velocity, viscosity=self.get_option("viscosity"),
                               tolerance=self.get_option("tolerance"), advection=self.get_option("advection"))
         _check_step_work(solver.fluid, cells, self.get_option("time_step"))

@@ -33,7 +33,6 @@ _LAZY = {
     "edge_topology": "topology",
     "locality_order": "topology",
     "one_ring": "topology",
-    "spatial_order": "topology",
     "vertex_face_incidence": "topology",
     "InvalidMeshError": "validation",
     "as_faces": "validation",
@@ -63,7 +62,6 @@ if TYPE_CHECKING:
         edge_topology,
         locality_order,
         one_ring,
-        spatial_order,
         vertex_face_incidence,
     )
     from pverosion.kernels.validation import InvalidMeshError, as_faces, as_points, as_triangle_mesh

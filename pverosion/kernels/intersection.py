@@ -349,11 +349,81 @@ def _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
     return max(fx0, gx0) == ix and max(fy0, gy0) == iy and max(fz0, gz0) == iz
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _side_range(points, faces, h, other, m, o, shared):
+    """Bounds of m . (p - o) over the vertices p of face h (but those of face ``other`` when ``shared``), widened
+    by far more than their rounding (below 4 eps |m|_1 |p - o|_1)."""
+    m1 = abs(m[0]) + abs(m[1]) + abs(m[2])
+    lo, hi = np.inf, -np.inf
+    for t in range(3):
+        v = faces[h, t]
+        if shared and (v == faces[other, 0] or v == faces[other, 1] or v == faces[other, 2]):
+            continue
+        d = v3.sub(v3.row(points, v), o)
+        s = v3.dot(m, d)
+        tol = 1e-12 * m1 * (abs(d[0]) + abs(d[1]) + abs(d[2]))
+        lo, hi = min(lo, s - tol), max(hi, s + tol)
+    return lo, hi
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _plane_separates(points, faces, f, g, m, o, shared):
+    """Whether the plane through point ``o`` with normal ``m`` has face f strictly on one side and face g strictly
+    on the other (but for their shared vertex ``o`` when ``shared``), by more than the rounding of the side values.
+    The plane is defined by these floats exactly, so this never separates faces that meet (but at ``o``)."""
+    lo_f, hi_f = _side_range(points, faces, f, g, m, o, shared)
+    lo_g, hi_g = _side_range(points, faces, g, f, m, o, shared)
+    if shared:
+        return (hi_f < 0.0 < lo_g) or (hi_g < 0.0 < lo_f)
+    return hi_f < lo_g or hi_g < lo_f
+
+
+@njit(cache=True, error_model="numpy")
+def _apart_by_a_plane(points, faces, f, g, shared):
+    """Whether a separating plane shows that faces f and g meet at most in their shared vertex (``shared`` = 1).
+
+    Faces in a common plane, or sharing a vertex, pass the tests of plane sides; the planes tried here separate
+    most of them: the plane between the centroids; the planes through the edges of either face perpendicular to
+    it (through an edge at the shared vertex, turned a little so that the edge's far end lies strictly on its
+    face's side)."""
+    m = (0.0, 0.0, 0.0)
+    o = v3.row(points, faces[f, 0])
+    for t in range(3):
+        m = v3.add(m, v3.sub(v3.row(points, faces[g, t]), v3.row(points, faces[f, t])))
+        if shared and (faces[f, t] == faces[g, 0] or faces[f, t] == faces[g, 1] or faces[f, t] == faces[g, 2]):
+            o = v3.row(points, faces[f, t])
+    if _plane_separates(points, faces, f, g, m, o, shared):
+        return True
+    for side in range(2):
+        h = np.int64(f) if side == 0 else np.int64(g)
+        other = np.int64(g) if side == 0 else np.int64(f)
+        p0, p1, p2 = v3.row(points, faces[h, 0]), v3.row(points, faces[h, 1]), v3.row(points, faces[h, 2])
+        c = v3.cross(v3.sub(p1, p0), v3.sub(p2, p0))
+        for i in range(3):
+            a, b = faces[h, i], faces[h, (i + 1) % 3]
+            e = v3.sub(v3.row(points, b), v3.row(points, a))
+            m = v3.cross(e, c)  # in h's plane, away from h
+            if not shared:
+                if _plane_separates(points, faces, f, g, m, v3.row(points, a), 0):
+                    return True
+                continue
+            m1 = abs(m[0]) + abs(m[1]) + abs(m[2])
+            e1 = abs(e[0]) + abs(e[1]) + abs(e[2])
+            turn = 1e-9 * m1 * e1 / v3.dot(e, e)
+            for end in range(2):
+                v, far = (a, e) if end == 0 else (b, v3.scale(e, -1.0))
+                if v == faces[other, 0] or v == faces[other, 1] or v == faces[other, 2]:
+                    if _plane_separates(points, faces, f, g, v3.sub(m, v3.scale(far, turn)), v3.row(points, v), 1):
+                        return True
+    return False
+
+
 @njit(cache=True, error_model="numpy")
 def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size, f,
                     out, n_out):
     """Faces g whose boxes meet f's box, that share no edge with f, (with groups) are in another group, and
-    that neither lies strictly on one side of the other's plane (apart from a shared vertex): g > f, or with a
+    that neither lies strictly on one side of the other's plane nor of a plane of :func:`_apart_by_a_plane`
+    (apart from a shared vertex): g > f, or with a
     query any g not queried before f. Written to ``out`` as (min, max) from ``n_out`` on when it is large
     enough. Returns the count."""
     fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
@@ -381,7 +451,8 @@ def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, 
                     # faces that share a vertex meet beyond it only when neither has its other two vertices on
                     # one side of the other's plane
                     if (_one_side(points, faces, planes, f, g, shared)
-                            or _one_side(points, faces, planes, g, f, shared)):
+                            or _one_side(points, faces, planes, g, f, shared)
+                            or _apart_by_a_plane(points, faces, f, g, shared)):
                         continue
                     if n_out < out.shape[0]:
                         out[n_out, 0] = min(f, g)
@@ -459,7 +530,10 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     other's plane by more than a generous bound of the rounding (so every
     pair that touches in exact arithmetic is kept). Faces that share one
     vertex are kept only when neither has its two other vertices on one side
-    of the other's plane: they may meet beyond the shared vertex.
+    of the other's plane: they may meet beyond the shared vertex. Faces in a
+    common plane (or sharing a vertex) are dropped when a plane through an
+    edge of either, between their centroids, or through the shared vertex
+    has them strictly on its two sides by more than the rounding.
 
     Parameters
     ----------
@@ -481,14 +555,21 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     grp = np.zeros(0, np.int64) if group is None else np.asarray(group, dtype=np.int64)
     if group is not None and grp.shape != (len(fcs),):
         raise ValueError(f"group must have shape ({len(fcs)},); got {grp.shape}")
+    wanted = np.zeros(0, bool) if query is None else np.asarray(query, dtype=bool)
+    if query is not None and wanted.shape != (len(fcs),):
+        raise ValueError(f"query must have shape ({len(fcs)},); got {wanted.shape}")
     lo, hi, ok, origin, inv_h, _, n_ok = _face_boxes(pts, fcs)
+    if query is not None and n_ok:
+        # a pair has a queried face: the other face's box meets the box around the queried faces
+        queried = wanted & ok
+        if not queried.any():
+            return np.zeros((0, 2), np.int64)
+        ok = ok & np.all(lo <= hi[queried].max(axis=0), axis=1) & np.all(hi >= lo[queried].min(axis=0), axis=1)
+        n_ok = int(np.count_nonzero(ok))
     if n_ok == 0:
         return np.zeros((0, 2), np.int64)
     size = 4 * n_ok + 1
     start, entries, cells = _build_grid(lo, hi, ok, origin, inv_h, size)
-    wanted = np.zeros(0, bool) if query is None else np.asarray(query, dtype=bool)
-    if query is not None and wanted.shape != (len(fcs),):
-        raise ValueError(f"query must have shape ({len(fcs)},); got {wanted.shape}")
     return _box_pairs(pts, fcs, _face_planes(pts, fcs), lo, hi, ok, grp, wanted, origin, inv_h, start, entries,
                       cells, size)
 

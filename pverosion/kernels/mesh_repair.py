@@ -464,23 +464,33 @@ def mesh_problems(points, faces, *, query=None) -> list[str]:
         One sentence per kind of problem; empty for a valid mesh.
     """
     pts, fcs = as_triangle_mesh(points, faces)
+    return _problems(pts, fcs, query, None)
+
+
+def _problems(pts, fcs, query, shells) -> list[str]:
+    """:func:`mesh_problems` of a validated mesh, with its :func:`_shells` when known."""
     n = len(pts)
     problems = []
-    count = edge_topology(fcs, n).face_count
-    if np.any(count != 2):
-        problems.append(f"{np.count_nonzero(count != 2)} edges are not in exactly two faces")
-    directed = fcs[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    same_way = len(directed) - len(unique_rows(directed)[0])
-    if same_way:
-        problems.append(f"{same_way} edges run the same way in two faces (inconsistent winding)")
-    if problems:
-        return problems
-    _, n_split = _fans(fcs, halfedge_twins(fcs, n)[0], n)
+    partner, others = halfedge_twins(fcs, n)
+    start = fcs.ravel()
+    # every edge in two faces (one other face at every half-edge), the twin running the other way: a valid
+    # surface skips the counts below, which name the problems
+    if not (np.all(others == 1) and np.all(start[partner] != start)):
+        count = edge_topology(fcs, n).face_count
+        if np.any(count != 2):
+            problems.append(f"{np.count_nonzero(count != 2)} edges are not in exactly two faces")
+        directed = fcs[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+        same_way = len(directed) - len(unique_rows(directed)[0])
+        if same_way:
+            problems.append(f"{same_way} edges run the same way in two faces (inconsistent winding)")
+        if problems:
+            return problems
+    _, n_split = _fans(fcs, partner, n)
     if n_split != n:
         problems.append(f"{n_split - n} vertices join separate fans of faces")
     if len(fcs) == 0:
         return problems
-    shell, volume, area = _shells(pts, fcs)
+    shell, volume, area = _shells(pts, fcs) if shells is None else shells
     thin = np.abs(volume) <= THIN_SHELL * _diagonal(pts) * area
     if thin.any():
         problems.append(f"{np.count_nonzero(thin)} shells enclose no volume (|volume| <= {THIN_SHELL:g} x area x "
@@ -529,10 +539,12 @@ def _finalized(result: RepairResult) -> RepairResult:
         changed[origin[moved]] = True
         result = replace(result, points=points, faces=faces, source_vertex=result.source_vertex[origin],
                          on_curve=result.on_curve[origin])
+    shells = None
     if len(faces):
-        shell, volume, area = _shells(points, faces)
+        shells = shell, volume, area = _shells(points, faces)
         keep = (np.abs(volume) > THIN_SHELL * _diagonal(points) * area)[shell]
         if not keep.all():
+            shells = None
             used = np.unique(faces[keep])
             new_index = np.full(len(points), -1, np.int64)
             new_index[used] = np.arange(len(used))
@@ -543,7 +555,7 @@ def _finalized(result: RepairResult) -> RepairResult:
             changed = changed[used]
     problems = []
     if len(result.faces):  # empty: nothing left, which is a valid result
-        problems = mesh_problems(result.points, result.faces, query=changed[result.faces].any(axis=1))
+        problems = _problems(result.points, result.faces, changed[result.faces].any(axis=1), shells)
     if problems:
         raise RepairError("the result would not be a closed, oriented 2-manifold without self-intersections: "
                           + "; ".join(problems))
