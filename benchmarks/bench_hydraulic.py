@@ -56,8 +56,18 @@ def _lattice(lo, hi, spacing: float) -> np.ndarray:
     return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
 
 
-def bunny_solver(n_particles: int = 17_700) -> HydraulicSolver:
-    """The bunny in a tank with a block of ``n_particles`` dropped on it."""
+def bunny_tank(n_particles: int = 17_700):
+    """The bunny scene: its pour scene, a block of ``n_particles`` above it, and the tank's domain.
+
+    Returns
+    -------
+    scene : pverosion.hydraulic_scenes.HydraulicScene
+        ``pour_scene`` of the scan (holes closed), y up.
+    block : numpy.ndarray, shape (n_particles, 3)
+        Particle positions of a column of water over the model's middle.
+    domain : tuple of numpy.ndarray
+        Lower and upper corners of the tank.
+    """
     path = DATA / "bunny.ply"
     if not path.exists():
         raise SystemExit(f"the bunny scan is not at {path}")
@@ -65,8 +75,7 @@ def bunny_solver(n_particles: int = 17_700) -> HydraulicSolver:
     mesh = scene.mesh
     lo, hi = np.array(mesh.bounds[0::2]), np.array(mesh.bounds[1::2])
     size = hi - lo
-    radius = scene.radius
-    spacing = 2.0 * radius
+    spacing = 2.0 * scene.radius
     # a column of water over the model's middle, as tall as it needs to be
     side = int(np.ceil(np.sqrt(n_particles / max(int(0.5 * size[2] / spacing), 1))))
     width = side * spacing
@@ -74,8 +83,14 @@ def bunny_solver(n_particles: int = 17_700) -> HydraulicSolver:
     block_lo = np.array([centre[0] - 0.5 * width, centre[1] - 0.5 * width, hi[2] + spacing])
     block = _lattice(block_lo, block_lo + [width, width, size[2]], spacing)[:n_particles]
     domain = (lo - [0.3 * size[0], 0.3 * size[1], 0.02 * size[2]], hi + [0.3 * size[0], 0.3 * size[1], 1.2 * size[2]])
-    fluid = FluidParameters(radius=radius)
-    solver = HydraulicSolver(mesh.points, mesh.regular_faces, fluid=fluid, domain=domain, walls=True)
+    return scene, block, domain
+
+
+def bunny_solver(n_particles: int = 17_700) -> HydraulicSolver:
+    """The bunny in a tank with a block of ``n_particles`` dropped on it."""
+    scene, block, domain = bunny_tank(n_particles)
+    fluid = FluidParameters(radius=scene.radius)
+    solver = HydraulicSolver(scene.mesh.points, scene.mesh.regular_faces, fluid=fluid, domain=domain, walls=True)
     solver.fluid.add_particles(block)
     return solver
 

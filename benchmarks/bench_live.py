@@ -21,34 +21,19 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pyvista as pv
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_hydraulic import DATA, _lattice  # noqa: E402  (the same bunny scene)
+from bench_hydraulic import bunny_tank  # noqa: E402  (the same bunny scene)
 
-from pverosion.hydraulic_scenes import pour_scene  # noqa: E402
 from pverosion.live import interactive  # noqa: E402
 
 
 def bunny_session(n_particles: int):
-    path = DATA / "bunny.ply"
-    if not path.exists():
-        raise SystemExit(f"the bunny scan is not at {path}")
-    scene = pour_scene(mesh=pv.read(path), up=(0.0, 1.0, 0.0))
-    mesh = scene.mesh
-    lo, hi = np.array(mesh.bounds[0::2]), np.array(mesh.bounds[1::2])
-    size = hi - lo
-    spacing = 2.0 * scene.radius
-    side = int(np.ceil(np.sqrt(n_particles / max(int(0.5 * size[2] / spacing), 1))))
-    width = side * spacing
-    centre = 0.5 * (lo + hi)
-    block_lo = np.array([centre[0] - 0.5 * width, centre[1] - 0.5 * width, hi[2] + spacing])
-    block = _lattice(block_lo, block_lo + [width, width, size[2]], spacing)[:n_particles]
-    domain = (lo - [0.3 * size[0], 0.3 * size[1], 0.02 * size[2]], hi + [0.3 * size[0], 0.3 * size[1], 1.2 * size[2]])
-    session = interactive(mesh, stage="hydraulic", off_screen=True, window_size=(1024, 768), radius=scene.radius,
-                          domain=domain, walls=True)
+    scene, block, domain = bunny_tank(n_particles)
+    session = interactive(scene.mesh, stage="hydraulic", off_screen=True, window_size=(1024, 768),
+                          radius=scene.radius, domain=domain, walls=True)
     session.solver.fluid.add_particles(block)
-    top = mesh.points[np.argmax(mesh.points[:, 2])]
+    top = scene.mesh.points[np.argmax(scene.mesh.points[:, 2])]
     session.pick(top)
     return session
 
