@@ -89,3 +89,12 @@ def test_bad_input_is_named():
         pverosion.hydraulic_erosion(pv.ImageData(dimensions=(3, 3, 3)), emitters=[EMITTER])
     with pytest.raises(pverosion.InvalidMeshError):
         pverosion.hydraulic_erosion(pv.PolyData(), emitters=[EMITTER])
+
+
+def test_a_failed_run_reports_no_progress_it_did_not_make():
+    # VTK sends a last progress event after a failed pass; a progress bar must not show the run as done
+    alg = HydraulicErosion(iterations=3, **_options(time_step=1e6))
+    reached = []
+    with pytest.raises(ValueError, match="time_step"):
+        alg.step_through(_slab(), [1.0, 2.0, 3.0], on_progress=reached.append)
+    assert max(reached, default=0.0) < 1.0

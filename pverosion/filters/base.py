@@ -359,7 +359,8 @@ class ErosionFilter(VTKPythonAlgorithmBase):
             tag = None
             if on_progress is not None:
                 def relay(caller, _event, start=reached, stop=t):
-                    on_progress(start + caller.GetProgress() * (stop - start))
+                    if self._error is None:  # VTK reports progress 1 after a failed pass too
+                        on_progress(start + caller.GetProgress() * (stop - start))
 
                 tag = self.AddObserver("ProgressEvent", relay)
             try:
