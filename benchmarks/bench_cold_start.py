@@ -16,6 +16,15 @@ small procedural volumes and spheres.
 
     python benchmarks/bench_cold_start.py [--data ../shared/data/bunny.ply] [--stages curvature,weather]
         [--skip-warmup] [--load N]
+
+``--per-kernel`` instead runs each chosen stage once cold and prints, per
+stage, the CPU seconds numba spent on each function and signature it
+compiled: ``self_s`` excludes the functions compiled for it as callees,
+``total_s`` includes them; ``llvm_s`` is the part of ``self_s`` spent in
+LLVM (optimising and emitting machine code). The list is sorted by ``self_s``; ``numba_s`` is
+the whole compile time and ``process_cpu_s`` the CPU seconds of the process.
+
+    python benchmarks/bench_cold_start.py --per-kernel --stages curvature [--top 25]
 """
 
 from __future__ import annotations
@@ -114,11 +123,80 @@ def _wall(args: list[str], cache: Path, cpu: dict | None = None, key: str = "", 
     return round(seconds, 2)
 
 
+PROFILE = r"""
+import atexit, json, os, sys, time
+from numba.core import event
+
+records, stack = [], []
+
+class Profile(event.Listener):
+    def on_start(self, ev):
+        dispatcher = ev.data["dispatcher"]
+        name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}"
+        stack.append([time.process_time(), 0.0, name, 0.0])
+
+    def on_end(self, ev):
+        started, children, name, llvm = stack.pop()
+        total = time.process_time() - started
+        if stack:
+            stack[-1][1] += total
+        records.append({"function": name, "signature": str(tuple(ev.data["args"])),
+                        "self_s": round(total - children, 3), "total_s": round(total, 3), "llvm_s": round(llvm, 3),
+                        "caller": stack[-1][2] if stack else None})
+
+class Llvm(event.Listener):
+    depth, started = 0, 0.0
+
+    def on_start(self, ev):
+        if self.depth == 0:
+            self.started = time.process_time()
+        self.depth += 1
+
+    def on_end(self, ev):
+        self.depth -= 1
+        if self.depth == 0 and stack:
+            stack[-1][3] += time.process_time() - self.started
+
+event.register("numba:compile", Profile())
+event.register("numba:llvm_lock", Llvm())
+atexit.register(lambda: open(os.environ["PVEROSION_COMPILE_PROFILE"], "w").write(json.dumps(records)))
+sys.argv = ["pverosion", *sys.argv[1:]]
+from pverosion.cli import main
+raise SystemExit(main())
+"""
+
+
+def per_kernel(stage: str, command: list[str], folder: Path, top: int) -> dict:
+    """Compile seconds per function and signature of one cold run of ``stage`` (see the module docstring)."""
+    cache = folder / f"cache_profile_{stage}"
+    out = folder / f"profile_{stage}.json"
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(cache), "PVEROSION_COMPILE_PROFILE": str(out)}
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    done = subprocess.run([sys.executable, "-c", PROFILE, *command], env=env, capture_output=True, text=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if done.returncode != 0:
+        raise RuntimeError(f"{stage} failed:\n{done.stderr[-2000:]}")
+    records = json.loads(out.read_text())
+    records.sort(key=lambda r: -r["self_s"])
+    signatures: dict[str, int] = {}
+    for record in records:
+        signatures[record["function"]] = signatures.get(record["function"], 0) + 1
+    return {"process_cpu_s": round(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime, 2),
+            "numba_s": round(sum(r["total_s"] for r in records if r["caller"] is None), 2),
+            "llvm_s": round(sum(r["llvm_s"] for r in records), 2),
+            "compiled": len(records),
+            "several_signatures": {name: n for name, n in signatures.items() if n > 1},
+            "kernels": records[:top] if top > 0 else records}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DEFAULT)
     parser.add_argument("--stages", default="", help="comma-separated stages (default: all)")
     parser.add_argument("--skip-warmup", action="store_true", help="do not time pverosion warmup")
+    parser.add_argument("--per-kernel", action="store_true",
+                        help="only the cold runs, with the compile seconds of every function and signature")
+    parser.add_argument("--top", type=int, default=30, help="with --per-kernel: functions listed per stage (0: all)")
     add_load_option(parser)
     args = parser.parse_args()
     stages = [s for s in args.stages.split(",") if s] or [s.command for s in STAGE_INDEX]
@@ -127,6 +205,12 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="pverosion_cold_") as tmp:
         folder = Path(tmp)
         commands = _inputs(folder, args.data)
+        if args.per_kernel:
+            profiles = {stage: per_kernel(stage, commands[stage], folder, args.top)
+                        for stage in stages}
+            print(json.dumps({"benchmark": "cold_start_per_kernel", "mesh": args.data.name, "stages": profiles},
+                             indent=1))
+            return
         result: dict = {"benchmark": "cold_start", "cpus": os.cpu_count(), "mesh": args.data.name,
                         "numba_num_threads": os.environ.get("NUMBA_NUM_THREADS", "default")}
         warm_cache = folder / "cache_warm"

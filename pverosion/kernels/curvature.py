@@ -17,6 +17,7 @@ from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range, chunk_total
+from pverosion.kernels._threads import for_chunks, for_ranges
 from pverosion.kernels.geometry import face_normal_terms, meyer_corner_areas, vertex_normals
 from pverosion.kernels.topology import locality_order, vertex_face_incidence
 from pverosion.kernels.validation import InvalidMeshError, as_faces, as_points
@@ -166,18 +167,23 @@ def _add_corner(acc, i, w, tensor):
     acc[i, 3] += w
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
-def _vertex_tensors(points, faces, normals):
+@njit(cache=True, error_model="numpy", nogil=True)
+def _tensor_chunk(points, faces, normals, acc, c):
+    """Add the corner-area-weighted face tensors of chunk ``c`` of the faces, in the vertex frames, and the
+    weights into ``acc[c]``, which holds (ku, kuv, kv, w) per vertex."""
+    start, stop = chunk_range(faces.shape[0], c)
+    for f in range(start, stop):
+        w0, w1, w2, t0, t1, t2 = _face_corners(points, faces, normals, f)
+        _add_corner(acc[c], faces[f, 0], w0, t0)
+        _add_corner(acc[c], faces[f, 1], w1, t1)
+        _add_corner(acc[c], faces[f, 2], w2, t2)
+
+
+def _vertex_tensors(points: np.ndarray, faces: np.ndarray, normals: np.ndarray) -> np.ndarray:
     """Per chunk of faces, the corner-area-weighted sums of the face tensors in the
     vertex frames, and the weight sums: shape (CHUNKS, V, 4) holding (ku, kuv, kv, w)."""
     acc = np.zeros((CHUNKS, points.shape[0], 4))
-    for c in prange(CHUNKS):
-        start, stop = chunk_range(faces.shape[0], c)
-        for f in range(start, stop):
-            w0, w1, w2, t0, t1, t2 = _face_corners(points, faces, normals, f)
-            _add_corner(acc[c], faces[f, 0], w0, t0)
-            _add_corner(acc[c], faces[f, 1], w1, t1)
-            _add_corner(acc[c], faces[f, 2], w2, t2)
+    for_chunks(_tensor_chunk, faces.shape[0], points, faces, normals, acc)
     return acc
 
 
@@ -216,22 +222,24 @@ def _diagonalise(nrm, ku, kuv, kv, total):
     return a1, a2, p1, v3.cross(nrm, p1)
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
-def _vertex_curvatures(normals, acc):
-    """Average the corner tensors of every vertex and diagonalise them."""
-    n_vertices = normals.shape[0]
-    k1 = np.zeros(n_vertices)
-    k2 = np.zeros(n_vertices)
-    d1 = np.zeros((n_vertices, 3))
-    d2 = np.zeros((n_vertices, 3))
-    area = np.zeros(n_vertices)
-    for i in prange(n_vertices):
+@njit(cache=True, error_model="numpy", nogil=True)
+def _curvature_range(normals, acc, k1, k2, d1, d2, area, start, stop):
+    """Average the corner tensors of vertices ``start`` to ``stop`` and diagonalise them."""
+    for i in range(start, stop):
         total = chunk_total(acc, i, 3)
         area[i] = total
         k1[i], k2[i], p1, p2 = _diagonalise(v3.row(normals, i), chunk_total(acc, i, 0), chunk_total(acc, i, 1),
                                             chunk_total(acc, i, 2), total)
         v3.store(d1, i, p1)
         v3.store(d2, i, p2)
+
+
+def _vertex_curvatures(normals: np.ndarray, acc: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Average the corner tensors of every vertex and diagonalise them: (k1, k2, d1, d2, area)."""
+    n_vertices = normals.shape[0]
+    k1, k2, area = np.zeros(n_vertices), np.zeros(n_vertices), np.zeros(n_vertices)
+    d1, d2 = np.zeros((n_vertices, 3)), np.zeros((n_vertices, 3))
+    for_ranges(_curvature_range, n_vertices, normals, acc, k1, k2, d1, d2, area)
     return k1, k2, d1, d2, area
 
 

@@ -7,10 +7,11 @@ int64 (see :func:`pverosion.kernels.validation.as_triangle_mesh`).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range, chunk_total
+from pverosion.kernels._threads import for_chunks, for_ranges
 from pverosion.kernels.topology import edge_topology
 
 __all__ = [
@@ -68,27 +69,37 @@ def face_normal_terms(points, faces, f, max_weights):
     return True, n, 1.0 / (la * le), 1.0 / (la * lb), 1.0 / (lb * le)
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
-def _scatter_normals(points, faces, max_weights):
-    n_vertices = points.shape[0]
-    acc = np.zeros((CHUNKS, n_vertices, 3))
-    for c in prange(CHUNKS):
-        start, stop = chunk_range(faces.shape[0], c)
-        for f in range(start, stop):
-            ok, n, w0, w1, w2 = face_normal_terms(points, faces, f, max_weights)
-            if not ok:
-                continue
-            i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-            for d in range(3):
-                acc[c, i0, d] += w0 * n[d]
-                acc[c, i1, d] += w1 * n[d]
-                acc[c, i2, d] += w2 * n[d]
-    out = np.zeros((n_vertices, 3))
-    for i in prange(n_vertices):
+@njit(cache=True, error_model="numpy", nogil=True)
+def _normal_chunk(points, faces, max_weights, acc, c):
+    """Add the weighted normals of chunk ``c`` of the faces to their corners in ``acc[c]`` (V, 3)."""
+    start, stop = chunk_range(faces.shape[0], c)
+    for f in range(start, stop):
+        ok, n, w0, w1, w2 = face_normal_terms(points, faces, f, max_weights)
+        if not ok:
+            continue
+        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        for d in range(3):
+            acc[c, i0, d] += w0 * n[d]
+            acc[c, i1, d] += w1 * n[d]
+            acc[c, i2, d] += w2 * n[d]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _normalise_range(acc, out, start, stop):
+    """Unit sums over the chunks of ``acc`` for vertices ``start`` to ``stop`` (zero where the sum is zero)."""
+    for i in range(start, stop):
         total = (chunk_total(acc, i, 0), chunk_total(acc, i, 1), chunk_total(acc, i, 2))
         length = v3.norm(total)
         if length > 0.0:
             v3.store(out, i, v3.scale(total, 1.0 / length))
+
+
+def _scatter_normals(points: np.ndarray, faces: np.ndarray, max_weights: bool) -> np.ndarray:
+    n_vertices = points.shape[0]
+    acc = np.zeros((CHUNKS, n_vertices, 3))
+    for_chunks(_normal_chunk, faces.shape[0], points, faces, max_weights, acc)
+    out = np.zeros((n_vertices, 3))
+    for_ranges(_normalise_range, n_vertices, acc, out)
     return out
 
 
@@ -151,15 +162,19 @@ def meyer_corner_areas(e0, e1, e2):
     return k * (w1 + w2), k * (w2 + w0), k * (w0 + w1)
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
-def _corner_areas(points, faces):
-    out = np.zeros((faces.shape[0], 3))
-    for f in prange(faces.shape[0]):
+@njit(cache=True, error_model="numpy", nogil=True)
+def _corner_area_range(points, faces, out, start, stop):
+    for f in range(start, stop):
         p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
         c0, c1, c2 = meyer_corner_areas(v3.sub(p2, p1), v3.sub(p0, p2), v3.sub(p1, p0))
         out[f, 0] = c0
         out[f, 1] = c1
         out[f, 2] = c2
+
+
+def _corner_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    out = np.zeros((faces.shape[0], 3))
+    for_ranges(_corner_area_range, faces.shape[0], points, faces, out)
     return out
 
 
@@ -197,17 +212,20 @@ def point_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.bincount(faces.ravel(), weights=corner_areas(points, faces).ravel(), minlength=len(points))
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
-def _mean_edge_length(points, edges):
+@njit(cache=True, error_model="numpy", nogil=True)
+def _edge_length_chunk(points, edges, partial, c):
+    lo, hi = chunk_range(edges.shape[0], c)
+    for e in range(lo, hi):
+        partial[c] += v3.norm(v3.sub(v3.row(points, edges[e, 0]), v3.row(points, edges[e, 1])))
+
+
+def _mean_edge_length(points: np.ndarray, edges: np.ndarray) -> float:
     """Summed in fixed edge chunks, so bit-identical for any thread count."""
     partial = np.zeros(CHUNKS)
-    for c in prange(CHUNKS):
-        lo, hi = chunk_range(edges.shape[0], c)
-        for e in range(lo, hi):
-            partial[c] += v3.norm(v3.sub(v3.row(points, edges[e, 0]), v3.row(points, edges[e, 1])))
+    for_chunks(_edge_length_chunk, edges.shape[0], points, edges, partial)
     total = 0.0
     for c in range(CHUNKS):
-        total += partial[c]
+        total += float(partial[c])
     return total / max(edges.shape[0], 1)
 
 

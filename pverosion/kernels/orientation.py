@@ -14,9 +14,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._threads import for_ranges
 from pverosion.kernels.topology import halfedge_twins, locality_order
 
 __all__ = ["ORIENTATIONS", "Orientation", "orient_faces", "winding_number"]
@@ -139,10 +140,12 @@ def _find(parent, v):
 def _closed_volumes(points, faces, flip, component, n_comp, others):
     """Signed volume of every component, with each hole closed by a cone to its rim's centroid."""
     n_vertices = points.shape[0]
-    origin = np.zeros(3)
+    ox = oy = oz = 0.0  # component loops: an array expression would compile numba's shape-error formatting
     for v in range(n_vertices):
-        origin += points[v]
-    origin /= n_vertices
+        ox += points[v, 0]
+        oy += points[v, 1]
+        oz += points[v, 2]
+    origin = (ox / n_vertices, oy / n_vertices, oz / n_vertices)
     volume = np.zeros(n_comp)
     parent = np.arange(n_vertices)
     for f in range(faces.shape[0]):
@@ -165,7 +168,8 @@ def _closed_volumes(points, faces, flip, component, n_comp, others):
         if others[h] == 0:
             a = faces[h // 3, h % 3]
             r = _find(parent, a)
-            centre[r] += points[a]
+            for d in range(3):
+                centre[r, d] += points[a, d]
             count[r] += 1.0
     for h in range(others.shape[0]):
         if others[h] == 0:
@@ -235,10 +239,9 @@ def orient_faces(
     return Orientation(_apply(faces, flipped), flipped, comp, mode)
 
 
-@njit(cache=True, parallel=True)
-def _apply(faces, flip):
-    out = np.empty_like(faces)
-    for f in prange(faces.shape[0]):
+@njit(cache=True, nogil=True)
+def _apply_range(faces, flip, out, start, stop):
+    for f in range(start, stop):
         out[f, 0] = faces[f, 0]
         if flip[f]:
             out[f, 1] = faces[f, 2]
@@ -246,6 +249,12 @@ def _apply(faces, flip):
         else:
             out[f, 1] = faces[f, 1]
             out[f, 2] = faces[f, 2]
+
+
+def _apply(faces: np.ndarray, flip: np.ndarray) -> np.ndarray:
+    """``faces`` with the faces where ``flip`` is set reversed (their last two corners swapped)."""
+    out = np.empty_like(faces)
+    for_ranges(_apply_range, faces.shape[0], faces, flip, out)
     return out
 
 

@@ -10,7 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
+
+from pverosion.kernels._threads import for_ranges
 
 __all__ = [
     "EdgeTopology",
@@ -208,21 +210,20 @@ def locality_order(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return _order_by_min_vertex(faces, int(n_vertices))
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
-def _twins(faces, indptr, face_ids, corner_ids):
-    n_vertices = indptr.shape[0] - 1
-    n_slots = face_ids.shape[0]
-    # the vertices after and before v in each face around v, stored contiguously per vertex
-    after = np.empty(n_slots, np.int64)
-    before = np.empty(n_slots, np.int64)
-    for s in prange(n_slots):
+@njit(cache=True, error_model="numpy", nogil=True)
+def _neighbours_range(faces, face_ids, corner_ids, after, before, start, stop):
+    """The vertices after and before the vertex of incidence slots ``start`` to ``stop`` in their faces."""
+    for s in range(start, stop):
         g = face_ids[s]
         c = corner_ids[s]
         after[s] = faces[g, (c + 1) % 3]
         before[s] = faces[g, (c + 2) % 3]
-    partner = np.full(3 * faces.shape[0], -1, np.int64)
-    others = np.zeros(3 * faces.shape[0], np.int64)
-    for a in prange(n_vertices):
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _twins_range(indptr, face_ids, corner_ids, after, before, partner, others, start, stop):
+    """Twins and edge multiplicities of the half-edges leaving vertices ``start`` to ``stop``."""
+    for a in range(start, stop):
         for s in range(indptr[a], indptr[a + 1]):
             b = after[s]
             if b == a:
@@ -242,6 +243,18 @@ def _twins(faces, indptr, face_ids, corner_ids):
             others[h] = count
             if count == 1:
                 partner[h] = found
+
+
+def _twins(faces: np.ndarray, indptr: np.ndarray, face_ids: np.ndarray,
+           corner_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    n_slots = face_ids.shape[0]
+    # the vertices after and before v in each face around v, stored contiguously per vertex
+    after = np.empty(n_slots, np.int64)
+    before = np.empty(n_slots, np.int64)
+    for_ranges(_neighbours_range, n_slots, faces, face_ids, corner_ids, after, before)
+    partner = np.full(3 * faces.shape[0], -1, np.int64)
+    others = np.zeros(3 * faces.shape[0], np.int64)
+    for_ranges(_twins_range, indptr.shape[0] - 1, indptr, face_ids, corner_ids, after, before, partner, others)
     return partner, others
 
 
