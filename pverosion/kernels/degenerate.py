@@ -181,17 +181,22 @@ def _pass(points, faces, on_curve, curve_degree, curve_keys, locked, needle, cap
         return (points, faces, np.ones(n_f, np.bool_), np.arange(n_v), np.arange(n_f), on_curve,
                 np.empty((0, 3), np.int64), 0, 0, 0)
     n_caps = int(np.sum(kind == _CAP))
+    # element loops, not slice assignments: those compile numba's formatting of shape errors
     pts = np.empty((n_v + n_caps, 3))
-    pts[:n_v] = points
+    curve = np.zeros(n_v + n_caps, np.bool_)
+    frozen = np.zeros(n_v + n_caps, np.bool_)
+    for v in range(n_v):
+        for d in range(3):
+            pts[v, d] = points[v, d]
+        curve[v] = on_curve[v]
+        frozen[v] = locked[v]
     fcs = np.empty((n_f + 2 * n_caps, 3), np.int64)
-    fcs[:n_f] = faces
+    for f in range(n_f):
+        for k in range(3):
+            fcs[f, k] = faces[f, k]
     parent = np.arange(n_f + 2 * n_caps)
     alive = np.ones(n_f + 2 * n_caps, np.bool_)
-    curve = np.zeros(n_v + n_caps, np.bool_)
-    curve[:n_v] = on_curve
     merged = np.arange(n_v + n_caps)
-    frozen = np.zeros(n_v + n_caps, np.bool_)
-    frozen[:n_v] = locked
     splits = np.empty((n_caps, 3), np.int64)
     indptr, face_ids, _ = _incidence(faces, n_v)
     ring_a = np.empty(256, np.int64)

@@ -17,9 +17,10 @@ Faces that share a vertex are adjacent and never reported; degenerate faces
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._threads import for_ranges
 from pverosion.kernels.validation import as_triangle_mesh
 
 __all__ = ["candidate_pairs", "intersecting_faces", "intersecting_pairs", "spatial_order", "triangles_intersect"]
@@ -196,15 +197,10 @@ def _hash(ix, iy, iz, size):
     return _morton(ix, iy, iz) % size
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
-def _face_boxes(points, faces):
-    """Boxes of the non-degenerate faces, the grid cell edge, origin and Morton keys."""
-    n = faces.shape[0]
-    lo = np.empty((n, 3))
-    hi = np.empty((n, 3))
-    ok = np.zeros(n, np.bool_)
-    side = np.zeros(n)
-    for f in prange(n):
+@njit(cache=True, error_model="numpy", nogil=True)
+def _box_range(points, faces, lo, hi, ok, side, start, stop):
+    """Boxes of faces ``start`` to ``stop``, whether they are non-degenerate and their largest side."""
+    for f in range(start, stop):
         p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
         for d in range(3):
             lo[f, d] = min(p0[d], p1[d], p2[d])
@@ -213,10 +209,15 @@ def _face_boxes(points, faces):
         ok[f] = v3.dot(c, c) > 0.0
         if ok[f]:
             side[f] = max(hi[f, 0] - lo[f, 0], hi[f, 1] - lo[f, 1], hi[f, 2] - lo[f, 2])
+
+
+@njit(cache=True, error_model="numpy")
+def _grid_frame(lo, ok, side):
+    """Origin (lowest box corner), cell edge and number of the non-degenerate faces."""
     n_ok = 0
     total = 0.0
     origin = np.full(3, np.inf)
-    for f in range(n):
+    for f in range(ok.shape[0]):
         if ok[f]:
             n_ok += 1
             total += side[f]
@@ -224,12 +225,30 @@ def _face_boxes(points, faces):
                 origin[d] = min(origin[d], lo[f, d])
     # cell edge: the mean of the boxes' largest side, so a face covers a few cells
     h = total / n_ok if n_ok > 0 and total > 0.0 else 1.0
-    keys = np.zeros(n, np.int64)
-    for f in prange(n):
+    return origin, h, n_ok
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _key_range(lo, ok, origin, h, keys, start, stop):
+    """Morton keys of the lowest grid cells of the boxes of faces ``start`` to ``stop``."""
+    for f in range(start, stop):
         if ok[f]:
             keys[f] = _morton(
                 int((lo[f, 0] - origin[0]) / h), int((lo[f, 1] - origin[1]) / h), int((lo[f, 2] - origin[2]) / h)
             )
+
+
+def _face_boxes(points: np.ndarray, faces: np.ndarray) -> tuple:
+    """Boxes of the non-degenerate faces, the grid cell edge, origin and Morton keys."""
+    n = faces.shape[0]
+    lo = np.empty((n, 3))
+    hi = np.empty((n, 3))
+    ok = np.zeros(n, np.bool_)
+    side = np.zeros(n)
+    for_ranges(_box_range, n, points, faces, lo, hi, ok, side)
+    origin, h, n_ok = _grid_frame(lo, ok, side)
+    keys = np.zeros(n, np.int64)
+    for_ranges(_key_range, n, lo, ok, origin, h, keys)
     return lo, hi, ok, origin, 1.0 / h, keys, n_ok
 
 
@@ -310,12 +329,11 @@ def _pair_hits(points, faces, lo, hi, f, g):
     )
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
-def _count_hits(points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells, size):
-    """Flag the faces that meet a non-adjacent face, testing the pairs with a queried face once."""
-    n = faces.shape[0]
-    hits = np.zeros(n, np.bool_)
-    for f in prange(n):
+@njit(cache=True, error_model="numpy", nogil=True)
+def _hits_range(points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells, size, hits, first, last):
+    """Flag in ``hits`` the faces that meet a non-adjacent face, testing the pairs of queried faces ``first`` to
+    ``last`` once (both faces of a hit are flagged; another range may flag the same face, with the same value)."""
+    for f in range(first, last):
         if not (ok[f] and query[f]):
             continue
         fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
@@ -338,6 +356,13 @@ def _count_hits(points, faces, lo, hi, ok, query, origin, inv_h, start, entries,
                         if _pair_hits(points, faces, lo, hi, f, g):
                             hits[f] = True
                             hits[g] = True  # same value from any thread: a benign race
+
+
+def _count_hits(points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells, size) -> np.ndarray:
+    """Flag the faces that meet a non-adjacent face, testing the pairs with a queried face once."""
+    hits = np.zeros(faces.shape[0], np.bool_)
+    for_ranges(_hits_range, faces.shape[0], points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells,
+               size, hits)
     return hits
 
 
@@ -461,11 +486,10 @@ def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, 
     return n_out
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
-def _face_planes(points, faces):
-    """Unit normal, offset and a bound of the rounding of plane distances of every face: (F, 5)."""
-    out = np.zeros((faces.shape[0], 5))
-    for f in prange(faces.shape[0]):
+@njit(cache=True, error_model="numpy", nogil=True)
+def _plane_range(points, faces, out, start, stop):
+    """Rows ``start`` to ``stop`` of :func:`_face_planes`."""
+    for f in range(start, stop):
         p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
         n = v3.cross(v3.sub(p1, p0), v3.sub(p2, p0))
         length = v3.norm(n)
@@ -479,6 +503,12 @@ def _face_planes(points, faces):
         for p in (p0, p1, p2):
             scale = max(scale, abs(p[0]) + abs(p[1]) + abs(p[2]))
         out[f, 4] = 1e-9 * scale  # far above the rounding of n . p - d for the points near the face
+
+
+def _face_planes(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit normal, offset and a bound of the rounding of plane distances of every face: (F, 5)."""
+    out = np.zeros((faces.shape[0], 5))
+    for_ranges(_plane_range, faces.shape[0], points, faces, out)
     return out
 
 
@@ -501,25 +531,40 @@ def _one_side(points, faces, planes, f, g, shared):
     return above == 3 - shared or below == 3 - shared
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
-def _box_pairs(points, faces, planes, lo, hi, ok, group, query, origin, inv_h, start, entries, cells, size):
+@njit(cache=True, error_model="numpy", nogil=True)
+def _pair_count_range(points, faces, planes, lo, hi, ok, group, query, origin, inv_h, start, entries, cells, size,
+                      count, first, last):
+    """``count[f + 1]``: the number of pairs of face f, for faces ``first`` to ``last``."""
+    none = np.empty((0, 2), np.int64)
+    for f in range(first, last):
+        if ok[f] and (query.shape[0] == 0 or query[f]):
+            count[f + 1] = _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start,
+                                           entries, cells, size, f, none, np.int64(0))
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _pair_fill_range(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size, count,
+                     out, first, last):
+    """The pairs of faces ``first`` to ``last``, at rows ``count[f]`` to ``count[f + 1]`` of ``out``."""
+    for f in range(first, last):
+        if count[f + 1] > count[f]:
+            rows = out[count[f]:count[f + 1]]
+            _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size,
+                            f, rows, np.int64(0))
+
+
+def _box_pairs(points, faces, planes, lo, hi, ok, group, query, origin, inv_h, start, entries, cells,
+               size) -> np.ndarray:
     """All face pairs (f < g) of :func:`candidate_pairs`, grouped by the queried face (by f without a query):
     (K, 2)."""
     n = faces.shape[0]
     count = np.zeros(n + 1, np.int64)
-    none = np.empty((0, 2), np.int64)
-    for f in prange(n):
-        if ok[f] and (query.shape[0] == 0 or query[f]):
-            count[f + 1] = _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start,
-                                           entries, cells, size, f, none, 0)
-    for f in range(n):
-        count[f + 1] += count[f]
+    for_ranges(_pair_count_range, n, points, faces, planes, lo, hi, ok, group, query, origin, inv_h, start, entries,
+               cells, size, count)
+    np.cumsum(count, out=count)
     out = np.empty((count[n], 2), np.int64)
-    for f in prange(n):
-        if count[f + 1] > count[f]:
-            rows = out[count[f]:count[f + 1]]
-            _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size,
-                            f, rows, 0)
+    for_ranges(_pair_fill_range, n, points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells,
+               size, count, out)
     return out
 
 

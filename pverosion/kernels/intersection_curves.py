@@ -32,8 +32,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
+from pverosion.kernels._threads import for_ranges
 from pverosion.kernels.intersection import candidate_pairs
 from pverosion.kernels.predicates import sign_orient2d, sign_orient3d
 from pverosion.kernels.validation import as_triangle_mesh
@@ -331,16 +332,20 @@ def _classify(p, faces, canon, f, g, keys, locs, cases):
     return _TOUCH if found == 1 else _CROSS
 
 
-@njit(cache=True, parallel=True)
-def _classify_pairs(p, faces, canon, pairs):
+@njit(cache=True, nogil=True)
+def _classify_range(p, faces, canon, pairs, status, keys, locs, cases, start, stop):
+    for i in range(start, stop):
+        status[i] = _classify(p, faces, canon, pairs[i, 0], pairs[i, 1], keys[i], locs[i], cases[i])
+
+
+def _classify_pairs(p, faces, canon, pairs) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`_classify` of every pair: status (K,), keys (K, 2, 3), locations (K, 2, 2), cases (K, 2)."""
     n = pairs.shape[0]
     status = np.empty(n, np.int64)
     keys = np.zeros((n, 2, 3), np.int64)
     locs = np.zeros((n, 2, 2), np.int64)
     cases = np.zeros((n, 2), np.int64)
-    for i in prange(n):
-        status[i] = _classify(p, faces, canon, pairs[i, 0], pairs[i, 1], keys[i], locs[i], cases[i])
+    for_ranges(_classify_range, n, p, faces, canon, pairs, status, keys, locs, cases)
     return status, keys, locs, cases
 
 
@@ -358,16 +363,20 @@ def _separated(p, axis, t, u, strict=False):
     return False
 
 
-@njit(cache=True, parallel=True)
-def _coplanar_overlaps(p, faces, pairs):
-    """Which coplanar pairs (K, 2) overlap with their interiors (exact, in the projection along the axis of the
-    first face's largest normal component: no edge line of either face separates them)."""
-    out = np.zeros(pairs.shape[0], np.bool_)
-    for i in prange(pairs.shape[0]):
+@njit(cache=True, nogil=True)
+def _overlap_range(p, faces, pairs, out, start, stop):
+    for i in range(start, stop):
         t, u = faces[pairs[i, 0]], faces[pairs[i, 1]]
         axis = _drop_axis(p, t)
         if _o2(p, axis, t[0], t[1], t[2]) != 0 and _o2(p, axis, u[0], u[1], u[2]) != 0:
             out[i] = not (_separated(p, axis, t, u) or _separated(p, axis, u, t))
+
+
+def _coplanar_overlaps(p: np.ndarray, faces: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Which coplanar pairs (K, 2) overlap with their interiors (exact, in the projection along the axis of the
+    first face's largest normal component: no edge line of either face separates them)."""
+    out = np.zeros(pairs.shape[0], np.bool_)
+    for_ranges(_overlap_range, pairs.shape[0], p, faces, pairs, out)
     return out
 
 
@@ -407,13 +416,20 @@ def _edge_edge_point(p, a, b, c, d):
     return p[a, 0] + t * ux, p[a, 1] + t * uy, p[a, 2] + t * uz
 
 
-@njit(cache=True, parallel=True)
-def _coordinates(p, faces, keys):
+def _coordinates(p: np.ndarray, faces: np.ndarray, keys: np.ndarray) -> np.ndarray:
     """Coordinates (P, 3) of the points with the given keys, computed from the keys alone (so alike for every
     pair that produces a point)."""
-    n_vertices = p.shape[0]
     out = np.empty((keys.shape[0], 3))
-    for i in prange(keys.shape[0]):
+    for_ranges(_coordinate_range, keys.shape[0], p, faces, keys, out)
+    for i in np.flatnonzero(keys[:, 0] == FACE_FACE_FACE):  # rare: points where three faces meet
+        out[i] = _three_planes(p, faces, keys[i, 1], keys[i, 2] // faces.shape[0], keys[i, 2] % faces.shape[0])
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _coordinate_range(p, faces, keys, out, start, stop):
+    n_vertices = p.shape[0]
+    for i in range(start, stop):
         kind = keys[i, 0]
         if kind == VERTEX:
             v = keys[i, 1]
@@ -428,15 +444,23 @@ def _coordinates(p, faces, keys):
             c, d = keys[i, 2] // n_vertices, keys[i, 2] % n_vertices
             x, y, z = _edge_edge_point(p, a, b, c, d)
             out[i, 0], out[i, 1], out[i, 2] = x, y, z
-        else:
-            x, y, z = _three_planes(p, faces, keys[i, 1], keys[i, 2] // faces.shape[0], keys[i, 2] % faces.shape[0])
-            out[i, 0], out[i, 1], out[i, 2] = x, y, z
-    return out
+        # FACE_FACE_FACE: _coordinates solves those
 
 
-@njit(cache=True)
-def _three_planes(p, faces, f, g, h):
-    """The point where the planes of faces f, g and h meet (Cramer's rule, in floating point)."""
+def _three_planes(p: np.ndarray, faces: np.ndarray, f: int, g: int, h: int) -> np.ndarray:
+    """The point where the planes of faces f, g and h meet, (3,) (LAPACK's ``dgesv``, in floating point).
+
+    Solved outside numba: its ``np.linalg.solve`` would take seconds to
+    compile for a case that few runs meet. ``dgesv`` is the routine numba
+    calls, from the same library, so the result is the same.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        If the planes do not meet in one point (or the points are not finite).
+    """
+    from scipy.linalg import lapack
+
     rows = np.empty((3, 3))
     rhs = np.empty(3)
     for r, t in enumerate((f, g, h)):
@@ -445,8 +469,12 @@ def _three_planes(p, faces, f, g, h):
         vx, vy, vz = p[c, 0] - p[a, 0], p[c, 1] - p[a, 1], p[c, 2] - p[a, 2]
         rows[r, 0], rows[r, 1], rows[r, 2] = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
         rhs[r] = rows[r, 0] * p[a, 0] + rows[r, 1] * p[a, 1] + rows[r, 2] * p[a, 2]
-    x = np.linalg.solve(rows, rhs)
-    return x[0], x[1], x[2]
+    if not (np.all(np.isfinite(rows)) and np.all(np.isfinite(rhs))):
+        raise np.linalg.LinAlgError("Array must not contain infs or NaNs.")
+    _, _, x, info = lapack.dgesv(np.asfortranarray(rows), rhs)
+    if info > 0:
+        raise np.linalg.LinAlgError("Matrix is singular to machine precision.")
+    return x
 
 
 # --- where three surfaces meet -----------------------------------------------------------------------------
@@ -718,7 +746,7 @@ def _walk_polylines(segs, n_points):
     used = np.zeros(n_seg, np.bool_)
     path = np.empty(2 * n_seg + n_seg, np.int64)
     bounds = [0]
-    n = 0
+    n = np.int64(0)  # not the literal 0: _walk would be compiled for it as well as for int64
     for v in range(n_points):  # open polylines start where they end
         if degree[v] == 2 or degree[v] == 0:
             continue

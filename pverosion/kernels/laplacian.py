@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from numba import njit, prange
+from numba import njit
 
+from pverosion.kernels._threads import for_ranges
 from pverosion.kernels.topology import one_ring
 
 __all__ = ["laplacian_vectors", "uniform_laplacian"]
@@ -65,10 +66,9 @@ def uniform_laplacian(faces: np.ndarray, n_vertices: int, *, edges: np.ndarray |
     return sp.csr_matrix((data, out_idx, out_ptr), shape=(n_vertices, n_vertices))
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
-def _ring_mean_offsets(points, ring_ptr, ring_idx):
-    out = np.zeros_like(points)
-    for i in prange(points.shape[0]):
+@njit(cache=True, error_model="numpy", nogil=True)
+def _ring_offset_range(points, ring_ptr, ring_idx, out, first, last):
+    for i in range(first, last):
         start, stop = ring_ptr[i], ring_ptr[i + 1]
         if stop == start:
             continue
@@ -77,6 +77,11 @@ def _ring_mean_offsets(points, ring_ptr, ring_idx):
             for s in range(start, stop):
                 total += points[ring_idx[s], d]
             out[i, d] = total / (stop - start) - points[i, d]
+
+
+def _ring_mean_offsets(points: np.ndarray, ring_ptr: np.ndarray, ring_idx: np.ndarray) -> np.ndarray:
+    out = np.zeros_like(points)
+    for_ranges(_ring_offset_range, points.shape[0], points, ring_ptr, ring_idx, out)
     return out
 
 

@@ -43,15 +43,15 @@ from typing import Any, ClassVar
 
 import numpy as np
 import scipy.sparse as sp
-from numba import njit, prange
+from numba import njit
 from scipy.spatial import cKDTree
 
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range
+from pverosion.kernels._threads import for_chunks
 from pverosion.kernels.curvature import CurvatureOperator
 from pverosion.kernels.geometry import vertex_normals
 from pverosion.kernels.intersection import intersecting_faces, spatial_order
-from pverosion.kernels.mesh_repair import CoplanarOverlapError, RepairError, repair_intersections
 from pverosion.kernels.orientation import ORIENTATIONS, orient_faces
 from pverosion.kernels.remesh import collapse_short_edges, short_edge_candidates
 from pverosion.kernels.topology import edge_topology, one_ring
@@ -63,23 +63,39 @@ REPAIR_MODES = ("retry", "topology", "off")
 """Accepted values of the ``repair`` option."""
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
-def volume_area(points, faces, origin):
-    """Enclosed volume and area; summed in fixed face chunks, so bit-identical for any thread count."""
+@njit(cache=True, error_model="numpy", nogil=True)
+def _volume_area_chunk(points, faces, origin, partial, c):
+    """Add six times the signed volume and twice the area of chunk ``c`` of the faces to ``partial[c]``."""
+    lo, hi = chunk_range(faces.shape[0], c)
+    for f in range(lo, hi):
+        a = v3.sub(v3.row(points, faces[f, 0]), (origin[0], origin[1], origin[2]))
+        b = v3.sub(v3.row(points, faces[f, 1]), (origin[0], origin[1], origin[2]))
+        cc = v3.sub(v3.row(points, faces[f, 2]), (origin[0], origin[1], origin[2]))
+        partial[c, 0] += v3.dot(a, v3.cross(b, cc))
+        partial[c, 1] += v3.norm(v3.cross(v3.sub(b, a), v3.sub(cc, a)))
+
+
+def volume_area(points: np.ndarray, faces: np.ndarray, origin: np.ndarray) -> tuple[float, float]:
+    """Enclosed volume and area; summed in fixed face chunks, so bit-identical for any thread count.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3), float64
+    faces : numpy.ndarray, shape (F, 3), int64
+    origin : numpy.ndarray, shape (3,), float64
+        Apex of the tetrahedra whose signed volumes are summed.
+
+    Returns
+    -------
+    volume, area : float
+    """
     partial = np.zeros((CHUNKS, 2))
-    for c in prange(CHUNKS):
-        lo, hi = chunk_range(faces.shape[0], c)
-        for f in range(lo, hi):
-            a = v3.sub(v3.row(points, faces[f, 0]), (origin[0], origin[1], origin[2]))
-            b = v3.sub(v3.row(points, faces[f, 1]), (origin[0], origin[1], origin[2]))
-            cc = v3.sub(v3.row(points, faces[f, 2]), (origin[0], origin[1], origin[2]))
-            partial[c, 0] += v3.dot(a, v3.cross(b, cc))
-            partial[c, 1] += v3.norm(v3.cross(v3.sub(b, a), v3.sub(cc, a)))
+    for_chunks(_volume_area_chunk, faces.shape[0], points, faces, origin, partial)
     volume = 0.0
     area = 0.0
     for c in range(CHUNKS):
-        volume += partial[c, 0]
-        area += partial[c, 1]
+        volume += float(partial[c, 0])
+        area += float(partial[c, 1])
     return volume / 6.0, area / 2.0
 
 
@@ -391,6 +407,9 @@ class GuardedMeshSolver:
             self._clean = self._snapshot()
             return True
         if self.repair == "topology":
+            # imported here: the repair's exact predicates compile on import, and most runs never repair
+            from pverosion.kernels.mesh_repair import CoplanarOverlapError, RepairError
+
             try:
                 self._repair_topology()
             except (CoplanarOverlapError, RepairError):
@@ -419,6 +438,8 @@ class GuardedMeshSolver:
 
     def _repair_topology(self) -> None:
         """Cut the mesh along its intersection curves and keep the boundary of winding number >= 1."""
+        from pverosion.kernels.mesh_repair import repair_intersections
+
         clock = time.perf_counter()
         result = repair_intersections(self.points, self.faces)
         source = result.source_vertex

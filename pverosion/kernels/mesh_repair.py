@@ -30,8 +30,9 @@ import warnings
 from dataclasses import dataclass, replace
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
+from pverosion.kernels._threads import for_ranges
 from pverosion.kernels.degenerate import remove_degenerate_faces
 from pverosion.kernels.geometry import average_edge_length
 from pverosion.kernels.intersection import intersecting_faces
@@ -262,12 +263,17 @@ def _patches(faces, n_vertices, cut_edges):
     return label
 
 
-@njit(cache=True, parallel=True)
-def _ray_windings(queries, skip, group, points, faces, lo, size, dims, start2, items2, face_group):
+@njit(cache=True, nogil=True)
+def _winding_range(queries, skip, group, points, faces, lo, size, dims, start2, items2, face_group, out, start, stop):
+    for q in range(start, stop):
+        out[q] = ray_winding(queries[q], points, faces, lo, size, dims, start2, items2, skip[q], face_group, group[q])
+
+
+def _ray_windings(queries, skip, group, points, faces, lo, size, dims, start2, items2, face_group) -> np.ndarray:
     """:func:`ray_winding` of every query point (Q, 3) (coordinates already permuted for the ray's axis)."""
     out = np.empty(queries.shape[0], np.int64)
-    for q in prange(queries.shape[0]):
-        out[q] = ray_winding(queries[q], points, faces, lo, size, dims, start2, items2, skip[q], face_group, group[q])
+    for_ranges(_winding_range, queries.shape[0], queries, skip, group, points, faces, lo, size, dims, start2, items2,
+               face_group, out)
     return out
 
 

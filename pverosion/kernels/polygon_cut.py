@@ -107,8 +107,9 @@ with a 5-point chord, 13 ms for 2000 points on one triangle).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
+from pverosion.kernels._threads import for_ranges
 from pverosion.kernels.predicates import orient2d
 
 __all__ = ["LOCATION_EDGE", "LOCATION_INTERIOR", "cut_triangle", "cut_triangles"]
@@ -295,7 +296,7 @@ def _argsort(values: np.ndarray) -> np.ndarray:
         _sift_down(values, idx, root, n)
     for end in range(n - 1, 0, -1):
         idx[0], idx[end] = idx[end], idx[0]
-        _sift_down(values, idx, 0, end)
+        _sift_down(values, idx, np.int64(0), end)  # not the literal 0: one compiled variant
     return idx
 
 
@@ -966,7 +967,7 @@ def cut_triangle(
             n_iso += 1
     tri = np.empty((cap + 2 * n_iso, 3), dtype=np.int64)
     reg = np.empty(cap + 2 * n_iso, dtype=np.int64)
-    nt = 0
+    nt = np.int64(0)  # not the literal 0: callees would be compiled for it as well as for int64
     for f in range(nf):
         if is_outer[f]:
             continue
@@ -1001,7 +1002,6 @@ def cut_triangle(
 # ---------------------------------------------------------------------------
 
 
-@njit(cache=True, parallel=True)
 def cut_triangles(
     xy: np.ndarray,
     location: np.ndarray,
@@ -1046,15 +1046,27 @@ def cut_triangles(
         triangle whose input was inconsistent (or whose CSR range was invalid).
     """
     n_tri = point_start.shape[0] - 1
-    n_pts = xy.shape[0]
-    n_seg = segments.shape[0]
     slot = np.zeros(max(n_tri, 0) + 1, dtype=np.int64)  # 2p rows per triangle, never overlapping
-    for i in range(n_tri):
-        slot[i + 1] = slot[i] + 2 * max(point_start[i + 1] - point_start[i], 0)
+    np.cumsum(2 * np.maximum(np.diff(point_start), 0), out=slot[1:])
     tri_out = np.empty((max(slot[-1], 0), 3), dtype=np.int64)
     reg_out = np.empty(max(slot[-1], 0), dtype=np.int64)
     count = np.zeros(max(n_tri, 0), dtype=np.int64)
-    for i in prange(n_tri):
+    for_ranges(_cut_range, max(n_tri, 0), xy, location, edge_param, point_start, segments, segment_start, slot,
+               tri_out, reg_out, count)
+    triangle_start = np.zeros(max(n_tri, 0) + 1, dtype=np.int64)
+    np.cumsum(count, out=triangle_start[1:])
+    keep = np.repeat(slot[:-1] - triangle_start[:-1], count) + np.arange(triangle_start[-1])
+    return tri_out[keep], reg_out[keep], triangle_start
+
+
+@njit(cache=True, nogil=True)
+def _cut_range(xy, location, edge_param, point_start, segments, segment_start, slot, tri_out, reg_out, count, first,
+               last):
+    """:func:`cut_triangle` on triangles ``first`` to ``last``; each writes its slot of ``tri_out`` and
+    ``reg_out`` and its count."""
+    n_pts = xy.shape[0]
+    n_seg = segments.shape[0]
+    for i in range(first, last):
         p0 = point_start[i]
         p1 = point_start[i + 1]
         s0 = segment_start[i]
@@ -1063,16 +1075,9 @@ def cut_triangles(
             t, r = cut_triangle(xy[p0:p1], location[p0:p1], edge_param[p0:p1], segments[s0:s1])
             k = t.shape[0]
             if k <= slot[i + 1] - slot[i]:
-                tri_out[slot[i] : slot[i] + k] = t
-                reg_out[slot[i] : slot[i] + k] = r
+                for j in range(k):
+                    tri_out[slot[i] + j, 0] = t[j, 0]
+                    tri_out[slot[i] + j, 1] = t[j, 1]
+                    tri_out[slot[i] + j, 2] = t[j, 2]
+                    reg_out[slot[i] + j] = r[j]
                 count[i] = k
-    triangle_start = np.zeros(max(n_tri, 0) + 1, dtype=np.int64)
-    for i in range(n_tri):
-        triangle_start[i + 1] = triangle_start[i] + count[i]
-    tri = np.empty((triangle_start[-1], 3), dtype=np.int64)
-    reg = np.empty(triangle_start[-1], dtype=np.int64)
-    for i in prange(n_tri):
-        k = count[i]
-        tri[triangle_start[i] : triangle_start[i] + k] = tri_out[slot[i] : slot[i] + k]
-        reg[triangle_start[i] : triangle_start[i] + k] = reg_out[slot[i] : slot[i] + k]
-    return tri, reg, triangle_start

@@ -26,9 +26,10 @@ import time
 from collections.abc import Callable
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._threads import for_ranges
 from pverosion.kernels.geometry import average_edge_length
 from pverosion.kernels.laplacian import laplacian_vectors
 from pverosion.kernels.materials import MaterialField
@@ -49,14 +50,12 @@ FLAT = 1e-9
 Erodibility = np.ndarray | Callable[[np.ndarray], np.ndarray] | MaterialField | None
 
 
-@njit(cache=True, error_model="numpy", parallel=True)
-def _displace(points, direction, unit, h_norm, h_raw, e_avg, power, length, factor, fixed, displacement):
-    """Points after one step along ``direction`` (made unit length when ``unit``).
-
-    Adds each vertex's step to ``displacement`` in place.
-    """
-    out = points.copy()
-    for i in prange(points.shape[0]):
+@njit(cache=True, error_model="numpy", nogil=True)
+def _displace_range(points, direction, unit, h_norm, h_raw, e_avg, power, length, factor, fixed, displacement, out,
+                    start, stop):
+    """Steps of vertices ``start`` to ``stop`` (see :func:`_displace`), written to ``out`` and added to
+    ``displacement``."""
+    for i in range(start, stop):
         if fixed[i] or h_norm[i] <= 0.0 or h_raw[i] * e_avg <= FLAT or factor[i] == 0.0:
             continue
         vec = v3.row(direction, i)
@@ -69,6 +68,16 @@ def _displace(points, direction, unit, h_norm, h_raw, e_avg, power, length, fact
         v3.store(out, i, v3.add(v3.row(points, i), step))
         for d in range(3):
             displacement[i, d] += step[d]
+
+
+def _displace(points, direction, unit, h_norm, h_raw, e_avg, power, length, factor, fixed, displacement):
+    """Points after one step along ``direction`` (made unit length when ``unit``).
+
+    Adds each vertex's step to ``displacement`` in place.
+    """
+    out = points.copy()
+    for_ranges(_displace_range, points.shape[0], points, direction, unit, h_norm, h_raw, e_avg, power, length, factor,
+               fixed, displacement, out)
     return out
 
 
