@@ -24,10 +24,13 @@ from concurrent.futures import ThreadPoolExecutor
 
 from pverosion.kernels._scatter import CHUNKS
 
-__all__ = ["MIN_ITEMS_PER_RANGE", "for_chunks", "for_ranges"]
+__all__ = ["HEAVY_ITEMS_PER_RANGE", "MIN_ITEMS_PER_RANGE", "for_chunks", "for_ranges"]
 
 MIN_ITEMS_PER_RANGE = 2048
-"""Smallest range handed to a thread: below it, one call in the calling thread is cheaper."""
+"""Smallest range handed to a thread by default: below it, one call in the calling thread is cheaper."""
+
+HEAVY_ITEMS_PER_RANGE = 64
+"""Smallest range for kernels with much work per item (pair tests, polygon cuts, ray casts)."""
 
 _pool: ThreadPoolExecutor | None = None
 _pool_lock = threading.Lock()
@@ -64,7 +67,7 @@ def _run(calls: list[tuple]) -> None:
             future.result()
 
 
-def for_ranges(kernel: Callable, n_items: int, *args) -> None:
+def for_ranges(kernel: Callable, n_items: int, *args, min_items: int = MIN_ITEMS_PER_RANGE) -> None:
     """Call ``kernel(*args, start, stop)`` on consecutive ranges covering ``[0, n_items)``, in parallel.
 
     ``kernel`` must release the GIL (``@njit(nogil=True)``) and write only
@@ -78,8 +81,10 @@ def for_ranges(kernel: Callable, n_items: int, *args) -> None:
         Number of items.
     *args
         Leading arguments of ``kernel``.
+    min_items : int, default: MIN_ITEMS_PER_RANGE
+        Smallest range worth a thread; lower it for kernels with much work per item.
     """
-    parts = max(1, min(_threads(), n_items // MIN_ITEMS_PER_RANGE))
+    parts = max(1, min(_threads(), n_items // max(1, min_items)))
     bounds = [p * n_items // parts for p in range(parts + 1)]
     _run([(kernel, (*args, bounds[p], bounds[p + 1])) for p in range(parts)])
 

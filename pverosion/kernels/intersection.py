@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from pverosion.kernels import _vec3 as v3
-from pverosion.kernels._threads import for_ranges
+from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges
 from pverosion.kernels.validation import as_triangle_mesh
 
 __all__ = ["candidate_pairs", "intersecting_faces", "intersecting_pairs", "spatial_order", "triangles_intersect"]
@@ -362,7 +362,7 @@ def _count_hits(points, faces, lo, hi, ok, query, origin, inv_h, start, entries,
     """Flag the faces that meet a non-adjacent face, testing the pairs with a queried face once."""
     hits = np.zeros(faces.shape[0], np.bool_)
     for_ranges(_hits_range, faces.shape[0], points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells,
-               size, hits)
+               size, hits, min_items=HEAVY_ITEMS_PER_RANGE)
     return hits
 
 
@@ -560,11 +560,11 @@ def _box_pairs(points, faces, planes, lo, hi, ok, group, query, origin, inv_h, s
     n = faces.shape[0]
     count = np.zeros(n + 1, np.int64)
     for_ranges(_pair_count_range, n, points, faces, planes, lo, hi, ok, group, query, origin, inv_h, start, entries,
-               cells, size, count)
+               cells, size, count, min_items=HEAVY_ITEMS_PER_RANGE)
     np.cumsum(count, out=count)
     out = np.empty((count[n], 2), np.int64)
     for_ranges(_pair_fill_range, n, points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells,
-               size, count, out)
+               size, count, out, min_items=HEAVY_ITEMS_PER_RANGE)
     return out
 
 

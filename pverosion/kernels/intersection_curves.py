@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from pverosion.kernels._threads import for_ranges
+from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges
 from pverosion.kernels.intersection import candidate_pairs
 from pverosion.kernels.predicates import sign_orient2d, sign_orient3d
 from pverosion.kernels.validation import as_triangle_mesh
@@ -345,7 +345,8 @@ def _classify_pairs(p, faces, canon, pairs) -> tuple[np.ndarray, np.ndarray, np.
     keys = np.zeros((n, 2, 3), np.int64)
     locs = np.zeros((n, 2, 2), np.int64)
     cases = np.zeros((n, 2), np.int64)
-    for_ranges(_classify_range, n, p, faces, canon, pairs, status, keys, locs, cases)
+    for_ranges(_classify_range, n, p, faces, canon, pairs, status, keys, locs, cases,
+               min_items=HEAVY_ITEMS_PER_RANGE)
     return status, keys, locs, cases
 
 
@@ -376,7 +377,7 @@ def _coplanar_overlaps(p: np.ndarray, faces: np.ndarray, pairs: np.ndarray) -> n
     """Which coplanar pairs (K, 2) overlap with their interiors (exact, in the projection along the axis of the
     first face's largest normal component: no edge line of either face separates them)."""
     out = np.zeros(pairs.shape[0], np.bool_)
-    for_ranges(_overlap_range, pairs.shape[0], p, faces, pairs, out)
+    for_ranges(_overlap_range, pairs.shape[0], p, faces, pairs, out, min_items=HEAVY_ITEMS_PER_RANGE)
     return out
 
 

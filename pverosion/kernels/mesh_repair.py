@@ -32,7 +32,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numba import njit
 
-from pverosion.kernels._threads import for_ranges
+from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges
 from pverosion.kernels.degenerate import remove_degenerate_faces
 from pverosion.kernels.geometry import average_edge_length
 from pverosion.kernels.intersection import intersecting_faces
@@ -273,7 +273,7 @@ def _ray_windings(queries, skip, group, points, faces, lo, size, dims, start2, i
     """:func:`ray_winding` of every query point (Q, 3) (coordinates already permuted for the ray's axis)."""
     out = np.empty(queries.shape[0], np.int64)
     for_ranges(_winding_range, queries.shape[0], queries, skip, group, points, faces, lo, size, dims, start2, items2,
-               face_group, out)
+               face_group, out, min_items=HEAVY_ITEMS_PER_RANGE)
     return out
 
 

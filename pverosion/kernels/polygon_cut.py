@@ -109,7 +109,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from pverosion.kernels._threads import for_ranges
+from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges
 from pverosion.kernels.predicates import orient2d
 
 __all__ = ["LOCATION_EDGE", "LOCATION_INTERIOR", "cut_triangle", "cut_triangles"]
@@ -1052,7 +1052,7 @@ def cut_triangles(
     reg_out = np.empty(max(slot[-1], 0), dtype=np.int64)
     count = np.zeros(max(n_tri, 0), dtype=np.int64)
     for_ranges(_cut_range, max(n_tri, 0), xy, location, edge_param, point_start, segments, segment_start, slot,
-               tri_out, reg_out, count)
+               tri_out, reg_out, count, min_items=HEAVY_ITEMS_PER_RANGE)
     triangle_start = np.zeros(max(n_tri, 0) + 1, dtype=np.int64)
     np.cumsum(count, out=triangle_start[1:])
     keep = np.repeat(slot[:-1] - triangle_start[:-1], count) + np.arange(triangle_start[-1])
