@@ -401,3 +401,15 @@ def test_a_grid_too_large_for_memory_is_refused(monkeypatch):
     monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "100K")
     with pytest.raises(ResourceLimitError, match=r"input grid: the solver of 1200 voxels .* use coarser voxels"):
         pverosion.voxel_erosion(_grid(), iterations=1)
+
+
+def test_absurd_paths_per_step_are_refused_before_the_graph_is_built(monkeypatch):
+    # building the graph (and compiling its kernels on a first run) can take minutes: the estimate comes first
+    from pverosion.filters import shards
+
+    def never(*args, **kwargs):
+        raise AssertionError("the shard graph was built before the request was checked")
+
+    monkeypatch.setattr(shards, "build_shards", never)
+    with pytest.raises(ResourceLimitError, match=r"paths_per_step: 1000000000000 water paths"):
+        shards.FreezeThaw(cells=20, iterations=1, paths_per_step=10**12).run(_sphere())
