@@ -638,6 +638,14 @@ def _split_at_triple_points(pts, fcs, canon, keys, coords, segments, pairs, loca
     face, other, seg = face[order], other[order], seg[order]
     start = np.flatnonzero(np.r_[True, face[1:] != face[:-1], True])
     crossings = _crossings_on_faces(pts, fcs, coords, segments, face, other, seg, start)
+    if len(crossings):
+        # a segment along an edge of f itself cannot cross another inside f: such a crossing is the rounding of the
+        # computed points (where a segment ends on that edge)
+        f, s1, s2 = crossings.T
+        own1, own2 = (pairs[s1, 0] != f).astype(np.int64), (pairs[s2, 0] != f).astype(np.int64)
+        on_rim = ((_edge_along(locations[s1, 0, own1], locations[s1, 1, own1]) >= 0)
+                  | (_edge_along(locations[s2, 0, own2], locations[s2, 1, own2]) >= 0))
+        crossings = crossings[~on_rim]
     if len(crossings) == 0:
         return keys, coords, segments, pairs, locations
     n_faces, n_vertices = len(fcs), len(pts)
