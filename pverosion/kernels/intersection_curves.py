@@ -38,8 +38,8 @@ from pverosion.kernels.intersection import candidate_pairs
 from pverosion.kernels.predicates import sign_orient2d, sign_orient3d
 from pverosion.kernels.validation import as_triangle_mesh
 
-__all__ = ["CASES", "IMPOSSIBLE_CASES", "IntersectionCurves", "canonical_vertices", "intersection_curves", "trace_polylines",
-           "unique_rows"]
+__all__ = ["CASES", "IMPOSSIBLE_CASES", "IntersectionCurves", "canonical_vertices", "coplanar_segments",
+           "intersection_curves", "trace_polylines", "unique_rows"]
 
 CASES = ("000", "001", "002", "011", "012", "022", "111", "112", "122", "222")
 """The thesis' classification of a line against a triangle: per edge, 0 (meets outside), 1 (at a vertex),

@@ -5,7 +5,11 @@
    degenerate face on a curve has no plane to cut in.
 1. The intersection curves are found exactly
    (:func:`pverosion.kernels.intersection_curves.intersection_curves`).
-2. Every face that an intersection segment lies on, or whose edge a curve
+2. Faces that overlap in a common plane get segments too: the parts of
+   each one's edges inside the other, found exactly in 2-D
+   (:func:`pverosion.kernels.intersection_curves.coplanar_segments`), so that
+   every piece of either lies wholly inside or outside the other.
+   Every face that an intersection segment lies on, or whose edge a curve
    point splits, is cut along its segments: its polygons are rebuilt and
    triangulated by ear clipping (:func:`pverosion.kernels.polygon_cut.cut_triangles`).
    The pieces on both sides of a curve share the curve's points, so the
@@ -13,12 +17,17 @@
 3. The curves divide the surface into patches (faces connected across edges
    that are not on a curve). Each patch lies wholly inside or outside every
    other part of the surface: its winding number is read once, by a ray from
-   a point of its largest face.
+   a point of its largest face. A patch lying on other input faces (a
+   coplanar overlap) leaves all of them out of its ray, and each of them
+   adds 1 to its operand's winding number on its back side.
 4. Which patches stay depends on the operation. A repair keeps the boundary
    of the region of winding number >= 1: patches with winding number 0 just
    in front of them. A Boolean operation keeps, of each operand, the patches
    outside or inside the other, the thesis' temporary normals deciding
    which: a difference turns the subtracted operand's kept patches around.
+   Of coincident patches (faces overlapping in a plane, cut alike), only
+   those of the lowest input face stay, and only where the result lies on
+   one side of them.
 5. Optionally, the mesh is improved: the needles and caps the cutting made
    collapse, flip or split while the curve vertices stay; should faces come
    to meet, their vertices are locked and the improvement starts over.
@@ -56,7 +65,8 @@ __all__ = ["OPERATIONS", "CoplanarOverlapError", "RepairError", "RepairResult", 
 
 
 class CoplanarOverlapError(ValueError):
-    """Faces of the input overlap in a common plane, which the repair and the Booleans do not cut."""
+    """Deprecated: no longer raised. Faces that overlap in a common plane are cut like any others; the name stays
+    for code that catches it."""
 
 
 OPERATIONS = ("union", "intersection", "difference", "reverse_difference")
@@ -871,8 +881,9 @@ def repair_intersections(points, faces, *, tolerance: float = DEFAULT_TOLERANCE,
         If the mesh is not closed.
     ValueError
         For a negative or non-finite tolerance.
-    CoplanarOverlapError
-        If faces overlap in a common plane (not supported).
+    RepairError
+        If the result would not be a closed, oriented 2-manifold without
+        self-intersections.
     """
     pts, fcs = as_triangle_mesh(points, faces)
     _check_closed(fcs, len(pts), "the mesh")
@@ -910,8 +921,9 @@ def boolean_meshes(points_a, faces_a, points_b, faces_b, operation: str, *, tole
         For an unknown operation, or a negative or non-finite tolerance.
     InvalidMeshError
         If an operand is not closed.
-    CoplanarOverlapError
-        If faces of A and B overlap in a common plane (not supported).
+    RepairError
+        If the result would not be a closed, oriented 2-manifold without
+        self-intersections.
     """
     if operation not in OPERATIONS:
         raise ValueError(f"operation must be one of {OPERATIONS}; got {operation!r}")
