@@ -227,7 +227,7 @@ def point_inside(p, points, faces, lo, size, dims, start2, items2):
     return ray_winding(p, points, faces, lo, size, dims, start2, items2, -1, np.zeros(0, np.int64), -1) % 2 != 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _ray_crossing(p, points, faces, t):
     """+1 when the +z ray from ``p`` crosses triangle ``t`` above ``p`` and the triangle faces up, -1 when it faces
     down, 0 when the ray misses it (claims on shared edges as in :func:`point_inside`)."""
@@ -253,7 +253,7 @@ def _ray_crossing(p, points, faces, t):
     return 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _column(p, lo, size, dims):
     """Column of the (x, y) grid that holds ``p``, -1 outside the grid."""
     i = int((p[0] - lo[0]) / size)

@@ -257,13 +257,14 @@ def _patches(faces, n_vertices, cut_edges, pairs_only=False):
             at = np.searchsorted(cut_edges, a * n_vertices + b)
             if at < cut_edges.shape[0] and cut_edges[at] == a * n_vertices + b:
                 continue
-            others = 0
-            for s in range(indptr[a], indptr[a + 1]):
-                g = face_ids[s]
-                if g != f and (faces[g, 0] == b or faces[g, 1] == b or faces[g, 2] == b):
-                    others += 1
-            if pairs_only and others != 1:
-                continue
+            if pairs_only:
+                others = 0
+                for s in range(indptr[a], indptr[a + 1]):
+                    g = face_ids[s]
+                    if g != f and (faces[g, 0] == b or faces[g, 1] == b or faces[g, 2] == b):
+                        others += 1
+                if others != 1:
+                    continue
             for s in range(indptr[a], indptr[a + 1]):
                 g = face_ids[s]
                 if g != f and (faces[g, 0] == b or faces[g, 1] == b or faces[g, 2] == b):
