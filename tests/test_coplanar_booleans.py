@@ -174,3 +174,20 @@ def test_mesh_and_its_mirror_image_across_its_flat_face():
     result = repair_intersections(*joined)
     assert_two_manifold(result.points, result.faces)
     assert signed_volume(result.points, result.faces) == pytest.approx(2.0 * volume, rel=1e-12)
+
+
+def test_coplanar_segments_are_the_edges_inside_the_other_face():
+    """Two triangles in z = 0 overlapping in the triangle (1, 1), (3, 1), (1, 3): the cut segments are the parts of
+    their edges inside each other, which bound that triangle, with ends at a vertex or where two edges cross."""
+    from pverosion.kernels.intersection_curves import EDGE_EDGE, VERTEX, canonical_vertices, curves_of
+
+    points = np.array([[0.0, 0, 0], [4, 0, 0], [0, 4, 0], [1, 1, 0], [5, 1, 0], [1, 5, 0]])
+    faces = np.array([[0, 1, 2], [3, 4, 5]])
+    plain = curves_of(points, faces, None, canonical_vertices(points))
+    assert len(plain.segments) == 0 and plain.coplanar.tolist() == [[0, 1]]
+    curves = curves_of(points, faces, None, canonical_vertices(points), coplanar_cuts=True)
+    ends = {frozenset(map(tuple, curves.points[s].round(12).tolist())) for s in curves.segments}
+    corners = [(1.0, 1.0, 0.0), (3.0, 1.0, 0.0), (1.0, 3.0, 0.0)]
+    assert ends == {frozenset([corners[0], corners[1]]), frozenset([corners[1], corners[2]]),
+                    frozenset([corners[2], corners[0]])}
+    assert sorted(curves.point_keys[:, 0].tolist()) == [VERTEX, EDGE_EDGE, EDGE_EDGE]
