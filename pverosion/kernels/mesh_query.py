@@ -18,7 +18,8 @@ from numba import njit
 
 from pverosion.kernels.predicates import orient2d
 
-__all__ = ["TriangleIndex", "box_triangles", "bucket_boxes", "overlap_grid", "point_inside", "ray_winding", "ray_winding_without", "segment_crossings", "unit_normals"]
+__all__ = ["TriangleIndex", "box_triangles", "bucket_boxes", "overlap_grid", "point_inside", "ray_winding",
+           "ray_winding_without", "segment_crossings", "unit_normals"]
 
 
 @dataclass(frozen=True)
