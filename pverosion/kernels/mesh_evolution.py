@@ -51,7 +51,7 @@ from pverosion.kernels._scatter import CHUNKS, chunk_range
 from pverosion.kernels.curvature import CurvatureOperator
 from pverosion.kernels.geometry import vertex_normals
 from pverosion.kernels.intersection import intersecting_faces, spatial_order
-from pverosion.kernels.mesh_repair import CoplanarOverlapError, RepairError, repair_intersections
+from pverosion.kernels.mesh_repair import RepairError, repair_intersections
 from pverosion.kernels.orientation import ORIENTATIONS, orient_faces
 from pverosion.kernels.remesh import collapse_short_edges, short_edge_candidates
 from pverosion.kernels.topology import edge_topology, one_ring
@@ -393,8 +393,8 @@ class GuardedMeshSolver:
         if self.repair == "topology":
             try:
                 self._repair_topology()
-            except (CoplanarOverlapError, RepairError):
-                pass  # the parts meet flat on, or no clean surface came out: roll back as "retry" does
+            except RepairError:
+                pass  # no clean surface came out: roll back as "retry" does
             else:
                 self._clean = self._snapshot()
                 return True
