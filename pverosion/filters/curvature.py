@@ -12,9 +12,9 @@ from pverosion.filters.base import (
     set_field_value,
     set_point_array,
 )
-from pverosion.kernels.curvature import principal_curvatures
+from pverosion.kernels.curvature import CurvatureOperator, principal_curvatures
 from pverosion.kernels.normalize import NORMALIZATIONS, normalize_curvature
-from pverosion.kernels.orientation import ORIENTATIONS, orient_faces
+from pverosion.kernels.orientation import ORIENTATIONS, orient_sorted
 from pverosion.kernels.validation import as_triangle_mesh
 
 __all__ = ["Curvature"]
@@ -55,12 +55,18 @@ class Curvature(ErosionFilter):
         """Compute the curvature arrays of ``inp`` into ``out``."""
         points, faces = polydata_triangles(inp)
         points, faces = as_triangle_mesh(points, faces)
-        orientation = orient_faces(points, faces, mode=self.get_option("orientation"))
-        self.UpdateProgress(0.3)
-        result = principal_curvatures(points, orientation.faces)
+        mode = self.get_option("orientation")
+        if mode == "keep":
+            n_flipped = 0
+            result = principal_curvatures(points, faces)
+        else:
+            # the orientation's faces come sorted the way the curvature operator sorts them
+            oriented = orient_sorted(points, faces, mode=mode)
+            n_flipped = oriented.n_flipped
+            result = CurvatureOperator.from_sorted(oriented.faces, len(points))(points)
         out.ShallowCopy(inp)
-        if orientation.n_flipped:
-            replace_triangles(out, orientation.faces)
+        if n_flipped:
+            replace_triangles(out, oriented.input_faces(faces))
         mean = result.mean
         set_point_array(out, "mean_curvature", mean)
         set_point_array(out, "gaussian_curvature", result.gaussian)
@@ -73,6 +79,6 @@ class Curvature(ErosionFilter):
         if method != "none":
             set_point_array(out, "mean_curvature_normalized", normalize_curvature(mean, method))
         out.GetPointData().SetActiveScalars("mean_curvature")
-        set_field_value(out, "face_orientation", orientation.mode)
-        set_field_value(out, "flipped_faces", orientation.n_flipped)
+        set_field_value(out, "face_orientation", mode)
+        set_field_value(out, "flipped_faces", n_flipped)
         set_field_value(out, "mean_abs_curvature", float(np.mean(np.abs(mean))))

@@ -420,6 +420,23 @@ class CurvatureOperator:
         self.n_vertices = n_vertices
         self.faces = fcs[locality_order(fcs, n_vertices)]
 
+    @classmethod
+    def from_sorted(cls, faces: np.ndarray, n_vertices: int) -> CurvatureOperator:
+        """An operator on faces already validated and sorted by their smallest vertex (stable).
+
+        The faces of :func:`~pverosion.kernels.orientation.orient_sorted` are;
+        the result equals the one built from the same faces in any order.
+
+        Parameters
+        ----------
+        faces : numpy.ndarray, shape (F, 3), int64
+        n_vertices : int
+        """
+        operator = cls.__new__(cls)
+        operator.n_vertices = int(n_vertices)
+        operator.faces = faces
+        return operator
+
     def __call__(self, points, *, normals=None) -> CurvatureResult:
         """Principal curvatures at ``points`` (V, 3); ``normals`` (V, 3) optional, else Max-weighted."""
         pts = as_points(points)
