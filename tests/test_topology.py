@@ -15,6 +15,7 @@ from pverosion.kernels import (
     uniform_laplacian,
     vertex_face_incidence,
 )
+from pverosion.kernels.topology import locality_sorted
 
 
 def test_closed_sphere_edges_follow_euler():
@@ -94,3 +95,12 @@ def test_locality_order_sorts_faces_by_smallest_vertex():
     assert np.array_equal(np.sort(order), np.arange(len(f)))
     lo = f[order].min(axis=1)
     assert np.all(np.diff(lo) >= 0)
+
+
+def test_locality_sorted_is_the_order_and_the_gathered_faces():
+    rng = np.random.default_rng(2)
+    s = pv.Icosphere(nsub=3)
+    f = s.regular_faces[rng.permutation(s.n_cells)].astype(np.int64)
+    order, rows = locality_sorted(f, s.n_points)
+    np.testing.assert_array_equal(order, locality_order(f, s.n_points))
+    np.testing.assert_array_equal(rows, f[order])

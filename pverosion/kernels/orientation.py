@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
-from pverosion.kernels.topology import halfedge_twins, locality_order
+from pverosion.kernels.topology import halfedge_twins, locality_sorted
 
 __all__ = ["ORIENTATIONS", "Orientation", "SortedOrientation", "orient_faces", "orient_sorted", "winding_number"]
 
@@ -279,8 +279,7 @@ def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward
     """
     if mode not in ("outward", "inward"):
         raise ValueError(f"orientation must be 'outward' or 'inward'; got {mode!r}")
-    order = locality_order(faces, len(points))
-    local = _take_rows(faces, order)
+    order, local = locality_sorted(faces, len(points))
     partner, others = halfedge_twins(local, len(points))
     flip, component = _propagate(local, partner)
     n_comp = int(component.max()) + 1
@@ -295,18 +294,6 @@ def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward
         flip ^= turn[component]
     n_flipped = int(np.count_nonzero(flip))
     return SortedOrientation(order, _apply(local, flip) if n_flipped else local, flip, component, n_flipped)
-
-
-@njit(cache=True, parallel=True)
-def _take_rows(faces, order):
-    """``faces[order]`` for an (F, 3) array."""
-    out = np.empty((order.shape[0], 3), faces.dtype)
-    for i in prange(order.shape[0]):
-        f = order[i]
-        out[i, 0] = faces[f, 0]
-        out[i, 1] = faces[f, 1]
-        out[i, 2] = faces[f, 2]
-    return out
 
 
 @njit(cache=True, parallel=True)
