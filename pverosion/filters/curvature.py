@@ -67,17 +67,17 @@ class Curvature(ErosionFilter):
         out.ShallowCopy(inp)
         if n_flipped:
             replace_triangles(out, oriented.input_faces(faces))
-        mean = result.mean
-        set_point_array(out, "mean_curvature", mean)
-        set_point_array(out, "gaussian_curvature", result.gaussian)
-        set_point_array(out, "k1", result.k1)
-        set_point_array(out, "k2", result.k2)
-        set_point_array(out, "principal_direction_1", result.direction1)
-        set_point_array(out, "principal_direction_2", result.direction2)
-        set_point_array(out, "normals", result.normals)
+        mean = result.mean  # the result arrays are fresh: the output shares their memory instead of copying it
+        set_point_array(out, "mean_curvature", mean, copy=False)
+        set_point_array(out, "gaussian_curvature", result.gaussian, copy=False)
+        set_point_array(out, "k1", result.k1, copy=False)
+        set_point_array(out, "k2", result.k2, copy=False)
+        set_point_array(out, "principal_direction_1", result.direction1, copy=False)
+        set_point_array(out, "principal_direction_2", result.direction2, copy=False)
+        set_point_array(out, "normals", result.normals, copy=False)
         method = self.get_option("normalization")
         if method != "none":
-            set_point_array(out, "mean_curvature_normalized", normalize_curvature(mean, method))
+            set_point_array(out, "mean_curvature_normalized", normalize_curvature(mean, method), copy=False)
         out.GetPointData().SetActiveScalars("mean_curvature")
         set_field_value(out, "face_orientation", mode)
         set_field_value(out, "flipped_faces", n_flipped)
