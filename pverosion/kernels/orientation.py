@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
-from pverosion.kernels.topology import halfedge_twins, locality_sorted
+from pverosion.kernels.topology import sorted_twins
 
 __all__ = ["ORIENTATIONS", "Orientation", "SortedOrientation", "orient_faces", "orient_sorted", "winding_number"]
 
@@ -279,8 +279,7 @@ def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward
     """
     if mode not in ("outward", "inward"):
         raise ValueError(f"orientation must be 'outward' or 'inward'; got {mode!r}")
-    order, local = locality_sorted(faces, len(points))
-    partner, others = halfedge_twins(local, len(points))
+    order, local, partner, others = sorted_twins(faces, len(points))
     flip, component = _propagate(local, partner)
     n_comp = int(component.max()) + 1
     volume, extent = _closed_volumes(points, local, flip, component, n_comp, others)

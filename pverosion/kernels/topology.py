@@ -21,6 +21,7 @@ __all__ = [
     "locality_order",
     "locality_sorted",
     "one_ring",
+    "sorted_twins",
     "vertex_face_incidence",
 ]
 
@@ -258,21 +259,62 @@ def _corner_slots(faces, n_vertices):
     for v in range(n_vertices):
         indptr[v + 1] += indptr[v]
     fill = indptr[:-1].copy()
-    after = np.empty(3 * n_faces, np.int64)
-    before = np.empty(3 * n_faces, np.int64)
-    half = np.empty(3 * n_faces, np.int64)
+    after = np.empty(3 * n_faces, np.int32)
+    before = np.empty(3 * n_faces, np.int32)
+    half = np.empty(3 * n_faces, np.int32)
+    for f in range(n_faces):
+        _put_corners(faces, f, 3 * f, fill, after, before, half)
+    return indptr, after, before, half
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _put_corners(faces, f, h, fill, after, before, half):
+    """Store the three corners of face ``f`` (half-edges ``h``, ``h + 1``, ``h + 2``) in their vertices' slots."""
+    a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
+    s = fill[a0]
+    after[s], before[s], half[s] = a1, a2, h
+    fill[a0] += 1
+    s = fill[a1]
+    after[s], before[s], half[s] = a2, a0, h + 1
+    fill[a1] += 1
+    s = fill[a2]
+    after[s], before[s], half[s] = a0, a1, h + 2
+    fill[a2] += 1
+
+
+@njit(cache=True, error_model="numpy")
+def _sort_with_slots(faces, n_vertices):
+    """:func:`_sort_by_min_vertex` and :func:`_corner_slots` of the sorted faces, from two passes over ``faces``.
+
+    The corners of a vertex come in input face order rather than sorted
+    order, which changes nothing that :func:`_match_slots` computes.
+    """
+    n_faces = faces.shape[0]
+    start = np.zeros(n_vertices + 1, np.int64)
+    indptr = np.zeros(n_vertices + 1, np.int64)
     for f in range(n_faces):
         a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
-        s = fill[a0]
-        after[s], before[s], half[s] = a1, a2, 3 * f
-        fill[a0] += 1
-        s = fill[a1]
-        after[s], before[s], half[s] = a2, a0, 3 * f + 1
-        fill[a1] += 1
-        s = fill[a2]
-        after[s], before[s], half[s] = a0, a1, 3 * f + 2
-        fill[a2] += 1
-    return indptr, after, before, half
+        start[min(a0, a1, a2) + 1] += 1
+        indptr[a0 + 1] += 1
+        indptr[a1 + 1] += 1
+        indptr[a2 + 1] += 1
+    for v in range(n_vertices):
+        start[v + 1] += start[v]
+        indptr[v + 1] += indptr[v]
+    fill = indptr[:-1].copy()
+    order = np.empty(n_faces, np.int64)
+    rows = np.empty_like(faces)
+    after = np.empty(3 * n_faces, np.int32)
+    before = np.empty(3 * n_faces, np.int32)
+    half = np.empty(3 * n_faces, np.int32)
+    for f in range(n_faces):
+        lo = min(faces[f, 0], faces[f, 1], faces[f, 2])
+        i = start[lo]
+        start[lo] += 1
+        order[i] = f
+        rows[i, 0], rows[i, 1], rows[i, 2] = faces[f, 0], faces[f, 1], faces[f, 2]
+        _put_corners(faces, f, 3 * i, fill, after, before, half)
+    return order, rows, indptr, after, before, half
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -344,12 +386,43 @@ def halfedge_twins(
         How many other faces use the edge: 0 on the boundary, 1 inside a
         manifold, 2 or more at non-manifold edges.
     """
+    if incidence is None and not _slots_fit_int32(len(faces), n_vertices):
+        incidence = vertex_face_incidence(faces, n_vertices)
     if incidence is not None:
         indptr, face_ids, corner_ids = incidence
         after, before, half = _incidence_slots(faces, indptr, face_ids, corner_ids)
     else:
         indptr, after, before, half = _corner_slots(faces, int(n_vertices))
     return _match_slots(indptr, after, before, half)
+
+
+def _slots_fit_int32(n_faces: int, n_vertices: int) -> bool:
+    """Whether half-edge and vertex indices fit the 32-bit corner slots."""
+    return 3 * n_faces < 2**31 and n_vertices < 2**31
+
+
+def sorted_twins(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`locality_sorted` and the :func:`halfedge_twins` of the sorted faces, from two passes over ``faces``.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64
+    n_vertices : int
+
+    Returns
+    -------
+    order : numpy.ndarray, shape (F,), int64
+    sorted_faces : numpy.ndarray, shape (F, 3)
+        ``faces[order]``.
+    partner, others : numpy.ndarray, shape (3F,), int64
+        As :func:`halfedge_twins` of ``sorted_faces`` returns them.
+    """
+    faces = np.ascontiguousarray(faces)
+    if not _slots_fit_int32(len(faces), n_vertices):
+        order, rows = locality_sorted(faces, n_vertices)
+        return (order, rows, *halfedge_twins(rows, n_vertices))
+    order, rows, indptr, after, before, half = _sort_with_slots(faces, int(n_vertices))
+    return (order, rows, *_match_slots(indptr, after, before, half))
 
 
 @njit(cache=True, error_model="numpy")
