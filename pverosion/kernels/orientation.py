@@ -295,12 +295,10 @@ def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward
     return SortedOrientation(order, _apply(local, flip) if n_flipped else local, flip, component, n_flipped)
 
 
-@njit(cache=True, parallel=True)
-def _unsort(values, order):
+def _unsort(values: np.ndarray, order: np.ndarray) -> np.ndarray:
     """The array ``out`` with ``out[order] = values`` (``order`` a permutation)."""
     out = np.empty_like(values)
-    for i in prange(order.shape[0]):
-        out[order[i]] = values[i]
+    out[order] = values
     return out
 
 
