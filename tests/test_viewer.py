@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import pyvista as pv
+from conftest import run_pvbatch
 
 from pverosion.examples import load_cube
 from pverosion.filters.weathering import Weathering
@@ -298,11 +299,8 @@ def test_paraview_state_opens_in_paraview(series_path, tmp_path):
     state = write_paraview_state(Series(series_path), series_path, tmp_path / "cube.pvsm")
     loader = tmp_path / "load.py"
     loader.write_text(_LOAD_STATE)
-    command = [shutil.which("pvbatch"), str(loader), str(state), str(tmp_path / "shot.png")]
-    if shutil.which("xvfb-run") and not os.environ.get("DISPLAY"):  # Debian's pvbatch renders through X
-        command = ["xvfb-run", "-a", "-n", str(100 + os.getpid() % 800), "-s", "-screen 0 640x480x24", *command]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=tmp_path,
-                          stdin=subprocess.DEVNULL)
+    done = run_pvbatch([shutil.which("pvbatch"), str(loader), str(state), str(tmp_path / "shot.png")],
+                       screen="640x480x24", timeout=600, cwd=tmp_path)
     assert done.returncode == 0, (done.stdout + done.stderr)[-4000:]
     lines = dict(line.split(" ", 1) for line in done.stdout.splitlines() if line.split(" ", 1)[0].isupper())
     assert Path(lines["FILE"]) == series_path.resolve()  # ParaView reopens the series with all its steps
