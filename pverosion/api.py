@@ -398,8 +398,6 @@ def repair(mesh: pv.PolyData, *, orientation: str = "outward", tolerance: float 
     pverosion.RepairError
         If the result could not be made a closed, oriented 2-manifold without
         self-intersections (nothing broken is returned).
-    pverosion.CoplanarOverlapError
-        If faces overlap in a common plane (cutting those is not supported).
 
     Examples
     --------
@@ -452,8 +450,6 @@ def boolean(a: pv.PolyData, b: pv.PolyData, operation: str = "union", *, orienta
     pverosion.InvalidMeshError
         Empty or open input, non-triangles, or faces pointing inward; the
         message names the input (mesh A or mesh B).
-    pverosion.CoplanarOverlapError
-        If faces of ``a`` and ``b`` overlap in a common plane (not supported).
 
     Examples
     --------

@@ -64,7 +64,9 @@ def check_output_path(path: str | os.PathLike, data_type: str, *, what: str = "o
     suffixes = OUTPUT_FORMATS[data_type]
     if path.suffix.lower() not in suffixes:
         got = f"{path.suffix!r}" if path.suffix else "no extension"
-        raise ValueError(f"{what} {path}: a {data_type[3:]} result is written as {', '.join(suffixes)}; got {got}")
+        name = data_type[3:]
+        article = "an" if name[0] in "AEIOU" else "a"
+        raise ValueError(f"{what} {path}: {article} {name} result is written as {', '.join(suffixes)}; got {got}")
     _check_writable(path, what)
     return path
 

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import itertools
 import os
+import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +15,39 @@ import pyvista as pv
 os.environ.setdefault("PYVISTA_OFF_SCREEN", "true")
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+_DISPLAYS = itertools.count()
+
+
+def with_x_server(command: list[str], *, env: dict | None = None, screen: str = "1024x768x24") -> list[str]:
+    """``command`` under an X server of its own (``xvfb-run``) when there is no display.
+
+    Each call takes another display number: ``xvfb-run -a`` alone races with other runs
+    starting at :99, and the previous call's X server may still hold its number while it exits.
+    """
+    if not shutil.which("xvfb-run") or (env if env is not None else os.environ).get("DISPLAY"):
+        return command
+    number = 100 + (os.getpid() % 800 + 37 * next(_DISPLAYS)) % 800
+    while Path(f"/tmp/.X{number}-lock").exists() or Path(f"/tmp/.X11-unix/X{number}").exists():
+        number = 100 + (number - 99) % 800
+    return ["xvfb-run", "-a", "-n", str(number), "-s", f"-screen 0 {screen}", *command]
+
+
+def run_pvbatch(command: list[str], *, env: dict | None = None, screen: str = "1024x768x24",
+                **kwargs) -> subprocess.CompletedProcess:
+    """Run a ``pvbatch`` command line (under :func:`with_x_server`); captured text output.
+
+    Debian's ``pvbatch`` renders through X even off-screen, and under ``xvfb-run`` it
+    sometimes fails to open the display although the X server answers other clients
+    (``bad X server connection``, then SIGABRT). Only that failure is retried, twice, each
+    time on a new X server; any other outcome is returned as it is.
+    """
+    for attempt in range(3):
+        done = subprocess.run(with_x_server(command, env=env, screen=screen), capture_output=True, text=True,
+                              env=env, stdin=subprocess.DEVNULL, **kwargs)
+        if done.returncode == 0 or "bad X server connection" not in done.stderr:
+            break
+    return done
 
 
 @pytest.fixture(scope="session")

@@ -75,6 +75,11 @@ def inputs(tmp_path) -> Path:
     (tmp_path / "zero.vtp").write_bytes(b"")
     (tmp_path / "garbage.ply").write_bytes(np.random.default_rng(0).bytes(2000))
     (tmp_path / "folder.vtp").mkdir()
+    ramp = pv.ImageData(dimensions=(6, 6, 6))
+    ramp["value"] = np.linspace(0.0, 1.0, ramp.n_points)
+    ramp.save(tmp_path / "ramp.vti")
+    (tmp_path / "garbage.json").write_bytes(np.random.default_rng(1).bytes(300))
+    (tmp_path / "other.json").write_text('{"format": "something else"}')
     return tmp_path
 
 
@@ -149,6 +154,50 @@ CASES = {
     "absurd paths per step": (["shards", "sphere.vtp", "-o", "out.vtm", "--cells", "20", "--iterations", "1",
                                "--paths-per-step", "1000000000000"], r"--paths-per-step: 1000000000000 water paths",
                               None),
+    # materials, sample-materials, repair, boolean
+    "mesh to materials": (["materials", "sphere.vtp", "-o", "out.vti", "--thresholds", "0.5"],
+                          r"sphere.vtp holds a PolyData, not an image", None),
+    "image without scalars to materials": (["materials", "empty.vti", "-o", "out.vti", "--thresholds", "0.5"],
+                                           r"no scalars", None),
+    "no such array": (["materials", "ramp.vti", "-o", "out.vti", "--thresholds", "0.5", "--array", "nosuch"],
+                      r"no point array 'nosuch'",
+                      lambda d: pverosion.materials_from_volume(pv.read(d / "ramp.vti"), [0.5], array="nosuch")),
+    "NaN threshold": (["materials", "ramp.vti", "-o", "out.vti", "--thresholds", "nan"],
+                      r"--thresholds must be finite", None),
+    "threshold outside the values": (["materials", "ramp.vti", "-o", "out.vti", "--thresholds", "5"],
+                                     r"thresholds must lie strictly inside the value range",
+                                     lambda d: pverosion.materials_from_volume(pv.read(d / "ramp.vti"), [5.0])),
+    "equal thresholds": (["materials", "ramp.vti", "-o", "out.vti", "--thresholds", "0.5,0.5"],
+                         r"thresholds must be one or more distinct numbers",
+                         lambda d: pverosion.materials_from_volume(pv.read(d / "ramp.vti"), [0.5, 0.5])),
+    "NaN hardness": (["materials", "ramp.vti", "-o", "out.vti", "--thresholds", "0.5", "--hardness", "1,nan"],
+                     r"--hardness must be finite", None),
+    "image result to .vtp": (["materials", "ramp.vti", "-o", "out.vtp", "--thresholds", "0.5"],
+                             r"-o out.vtp: an ImageData result is written as .vti", None),
+    "missing tree file": (["sample-materials", "grid.vti", "-o", "out.vti", "--tree-file", "missing.json"],
+                          r"no such file: missing.json", None),
+    "garbage tree file": (["sample-materials", "grid.vti", "-o", "out.vti", "--tree-file", "garbage.json"],
+                          r"garbage.json is not a pverosion BSP file", None),
+    "foreign tree file": (["sample-materials", "grid.vti", "-o", "out.vti", "--tree-file", "other.json"],
+                          r"other.json is not a pverosion BSP file", None),
+    "image to repair": (["repair", "grid.vti", "-o", "out.vtp"], r"holds an image .*not a surface", None),
+    "NaN points, repair": (["repair", "nan.vtp", "-o", "out.vtp"], r"NaN or infinite coordinates at 1 vertices",
+                           lambda d: pverosion.repair(pv.read(d / "nan.vtp"))),
+    "non-triangles, repair": (["repair", "quads.vtp", "-o", "out.vtp"], r"not triangles",
+                              lambda d: pverosion.repair(pv.read(d / "quads.vtp"))),
+    "open mesh, repair": (["repair", "open.vtp", "-o", "out.vtp"], r"must be closed",
+                          lambda d: pverosion.repair(pv.read(d / "open.vtp"))),
+    "negative tolerance": (["repair", "sphere.vtp", "-o", "out.vtp", "--tolerance", "-1"], r"--tolerance must be >= 0",
+                           lambda d: pverosion.repair(_sphere(), tolerance=-1.0)),
+    "missing second mesh": (["boolean", "sphere.vtp", "missing.vtp", "-o", "out.vtp"], r"no such file: missing.vtp",
+                            None),
+    "non-manifold mesh B": (["boolean", "sphere.vtp", "fan.vtp", "-o", "out.vtp"], r"mesh B must be closed",
+                            lambda d: pverosion.boolean(_sphere(), pv.read(d / "fan.vtp"))),
+    "NaN points, mesh B": (["boolean", "sphere.vtp", "nan.vtp", "-o", "out.vtp"], r"mesh B: .*NaN or infinite",
+                           lambda d: pverosion.boolean(_sphere(), pv.read(d / "nan.vtp"))),
+    "infinite tolerance": (["boolean", "sphere.vtp", "sphere.vtp", "-o", "out.vtp", "--tolerance", "inf"],
+                           r"--tolerance must be finite",
+                           lambda d: pverosion.boolean(_sphere(), _sphere(), tolerance=float("inf"))),
 }
 
 
@@ -401,3 +450,15 @@ def test_a_grid_too_large_for_memory_is_refused(monkeypatch):
     monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "100K")
     with pytest.raises(ResourceLimitError, match=r"input grid: the solver of 1200 voxels .* use coarser voxels"):
         pverosion.voxel_erosion(_grid(), iterations=1)
+
+
+def test_absurd_paths_per_step_are_refused_before_the_graph_is_built(monkeypatch):
+    # building the graph (and compiling its kernels on a first run) can take minutes: the estimate comes first
+    from pverosion.filters import shards
+
+    def never(*args, **kwargs):
+        raise AssertionError("the shard graph was built before the request was checked")
+
+    monkeypatch.setattr(shards, "build_shards", never)
+    with pytest.raises(ResourceLimitError, match=r"paths_per_step: 1000000000000 water paths"):
+        shards.FreezeThaw(cells=20, iterations=1, paths_per_step=10**12).run(_sphere())

@@ -1,3 +1,5 @@
+import gc
+
 import numpy as np
 import pytest
 import pyvista as pv
@@ -5,7 +7,7 @@ from conftest import height_field, icosphere
 
 import pverosion
 from pverosion.examples import load_cylinder, load_torus
-from pverosion.kernels import InvalidMeshError, principal_curvatures
+from pverosion.kernels import InvalidMeshError, orient_faces, principal_curvatures
 from pverosion.kernels.curvature import CurvatureOperator, CurvatureTracker
 
 
@@ -165,3 +167,29 @@ def test_tracker_updates_equal_fresh_evaluations_and_the_operator():
     assert not update.k1.flags.writeable
     with pytest.raises(InvalidMeshError, match="shape"):
         tracker(points[:-1])
+
+
+def test_operator_from_sorted_faces_equals_the_one_built_from_any_order():
+    s = icosphere(1.0, 3)
+    rng = np.random.default_rng(4)
+    faces = s.regular_faces[rng.permutation(s.n_cells)]
+    moved = s.points * (1.0 + 0.05 * rng.random((s.n_points, 1)))
+    ordered = faces[np.argsort(faces.min(axis=1), kind="stable")]
+    a = CurvatureOperator.from_sorted(ordered, s.n_points)(moved)
+    b = CurvatureOperator(faces, s.n_points)(moved)
+    assert np.array_equal(a.k1, b.k1) and np.array_equal(a.direction2, b.direction2)
+
+
+@pytest.mark.parametrize("orientation", ["outward", "inward", "keep"])
+def test_curvature_filter_equals_orientation_then_kernel(bunny, orientation):
+    points, faces = np.asarray(bunny.points, float), bunny.regular_faces
+    out = pverosion.curvature(bunny, orientation=orientation)
+    gc.collect()  # the output's arrays share the kernel's memory: they must outlive the filter's temporaries
+    _ = [np.full((bunny.n_points, 3), 7.0) for _ in range(8)]
+    oriented = orient_faces(points, faces, mode=orientation)
+    expected = principal_curvatures(points, oriented.faces)
+    for name, values in (("k1", expected.k1), ("k2", expected.k2), ("normals", expected.normals),
+                         ("principal_direction_1", expected.direction1)):
+        assert np.array_equal(out[name], values), name
+    np.testing.assert_array_equal(out.regular_faces, oriented.faces)
+    assert out.field_data["flipped_faces"][0] == oriented.n_flipped

@@ -68,7 +68,10 @@ def test_cli_reference_renders_every_subcommand():
 
     assert "```{pverosion-cli}" in (ROOT / "docs" / "cli.md").read_text(encoding="utf-8")
     commands = set(pverosion_api.cli_parsers())
-    assert {f.command_name() for f in ALL_FILTERS} | {"demo", "batch"} <= commands
+    assert {f.command_name() for f in ALL_FILTERS} | {"demo", "batch", "warmup", "view", "paraview"} <= commands
+    # nested subcommands get their own section, with their options
+    assert {"paraview setup", "paraview plugin-path"} <= commands
+    assert "--pvpython" in pverosion_api.cli_parsers()["paraview setup"].format_help()
 
 
 def test_every_example_is_a_titled_gallery_script():

@@ -157,7 +157,23 @@ def test_exchange_spreads_over_the_particle_footprint():
     np.testing.assert_allclose(pending, -eroded * expected / expected.sum(), rtol=1e-9, atol=1e-30)
 
 
-def test_exchange_of_a_particle_smaller_than_its_face_goes_to_the_corners():
+def test_exchange_of_a_particle_smaller_than_its_face_reaches_as_far_as_the_face():
+    # a face longer than the particle (r = 0.4) but not than the fluid's kernel radius 4 r: the footprint reaches
+    # as far as the face's longest edge (sqrt 2), so a particle touching the face next to a corner does not pour
+    # its whole exchange into that corner
+    points = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]])
+    faces = np.array([[0, 1, 2], [1, 3, 2]])
+    for contact in ([0.2, 0.3], [0.01, 0.01]):
+        pending, eroded = _one_particle_exchange(points, faces, np.array([*contact, 0.4]), 0.4)
+        d2 = np.sum((points[:, :2] - contact) ** 2, axis=1)
+        expected = point_areas(points, faces) * (1.0 - d2 / 2.0)
+        assert eroded > 0.0
+        np.testing.assert_allclose(pending, -eroded * expected / expected.sum(), rtol=1e-12)
+    assert pending[0] > -0.5 * eroded  # the corner under the particle: under half (its barycentric weight is 98 %)
+
+
+def test_exchange_on_a_face_longer_than_the_fluid_kernel_goes_to_the_corners():
+    # r = 0.01: no vertex within 4 r of the contact point, so the face's corners share by barycentric weight
     points = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]])
     faces = np.array([[0, 1, 2], [1, 3, 2]])
     pending, eroded = _one_particle_exchange(points, faces, np.array([0.2, 0.3, 0.01]), 0.01)

@@ -20,10 +20,12 @@ def _display(plotter, point) -> tuple[float, float]:
 
 
 def _run_until(session, steps: int, *, limit: float = 600.0) -> None:
-    """Let the worker step in the background until ``steps`` iterations are done (bounded wait)."""
+    """Let the worker step in the background until ``steps`` iterations are done and the view has shown
+    at least two of its states (bounded wait): a fast worker may finish ``steps`` between two polls."""
     session.start()
     start = time.monotonic()
-    while session.steps < steps and time.monotonic() - start < limit and session.error is None:
+    while ((session.steps < steps or session.updates < 2) and time.monotonic() - start < limit
+           and session.error is None):
         time.sleep(0.05)
         session.update_view()
     session.pause()

@@ -12,7 +12,7 @@ from test_intersection_curves import crossed_torus, rotated_cuboids
 from pverosion.kernels import InvalidMeshError
 from pverosion.kernels.intersection import candidate_pairs, triangles_intersect
 from pverosion.kernels.intersection_curves import intersection_curves
-from pverosion.kernels.mesh_repair import OPERATIONS, CoplanarOverlapError, boolean_meshes, repair_intersections
+from pverosion.kernels.mesh_repair import OPERATIONS, boolean_meshes, repair_intersections
 from pverosion.kernels.orientation import winding_number
 
 manifold3d = pytest.importorskip("manifold3d")
@@ -211,7 +211,7 @@ def test_bad_input_is_named():
         repair_intersections(box.points, open_box)
 
 
-def test_coplanar_overlaps_are_refused_and_coplanar_neighbours_are_not():
+def test_coplanar_overlaps_are_cut_and_coplanar_neighbours_are_not():
     box = pv.Box(bounds=(0, 1, 0, 1, 0, 1), level=3).triangulate().clean()
     points, faces = np.asarray(box.points, float), box.regular_faces
     # one box alone: faces of a side lie in one plane and their boxes meet, but an edge line separates every two
@@ -219,11 +219,15 @@ def test_coplanar_overlaps_are_refused_and_coplanar_neighbours_are_not():
     alone = repair_intersections(points, faces)
     assert len(alone.curves.coplanar) == 0
     assert _volume(alone.points, alone.faces) == pytest.approx(1.0, rel=1e-12)
-    # a second box sharing the planes z = 0 and z = 1 overlaps the first one's top and bottom faces there
+    # a second box sharing the planes z = 0 and z = 1 overlaps the first one's top and bottom faces there: the
+    # overlapping faces are cut along each other's edges, and one copy of the shared pieces stays
     other = pv.Box(bounds=(0.5, 1.5, 0.2, 0.8, 0, 1), level=2).triangulate().clean()
-    for operation in ("union", "difference"):
-        with pytest.raises(CoplanarOverlapError, match="common plane"):
-            boolean_meshes(points, faces, other.points, other.regular_faces, operation)
+    x0, x1, y0, y1 = (float(v) for v in other.bounds[:4])  # float32 coordinates
+    for operation, expected in (("union", 1.0 + (x1 - 1.0) * (y1 - y0)), ("difference", 1.0 - (1.0 - x0) * (y1 - y0)),
+                                ("intersection", (1.0 - x0) * (y1 - y0))):
+        result = boolean_meshes(points, faces, other.points, other.regular_faces, operation)
+        assert_clean(result.points, result.faces)
+        assert _volume(result.points, result.faces) == pytest.approx(expected, rel=1e-12)
     # lifted off the planes a little, it is cut as usual
     lifted = other.translate((0.0, 0.0, 1e-3))
     result = boolean_meshes(points, faces, lifted.points, lifted.regular_faces, "union")

@@ -3,6 +3,7 @@ import pytest
 from conftest import height_field, icosphere
 
 from pverosion.kernels import orient_faces, signed_volume, winding_number
+from pverosion.kernels.orientation import orient_sorted
 
 
 def _scramble(faces, seed=0):
@@ -61,3 +62,52 @@ def test_winding_number_inside_and_outside():
     s = icosphere(1.0, 3)
     assert winding_number([0.1, 0.0, 0.2], s.points, s.regular_faces) == pytest.approx(1.0, abs=1e-9)
     assert winding_number([3.0, 0.0, 0.0], s.points, s.regular_faces) == pytest.approx(0.0, abs=1e-9)
+
+
+def _two_shells():
+    outer, inner = icosphere(2.0, 2), icosphere(1.0, 2)
+    p = np.vstack([outer.points, inner.points])
+    f = np.vstack([outer.regular_faces, inner.regular_faces + outer.n_points])
+    return p, _scramble(f, seed=5)[0]
+
+
+def test_orientation_is_invariant_under_vertex_and_face_permutations():
+    p, f = _two_shells()
+    o = orient_faces(p, f)
+    rng = np.random.default_rng(7)
+    vperm = rng.permutation(len(p))  # new vertex i is old vertex vperm[i]
+    rank = np.argsort(vperm)
+    fperm = rng.permutation(len(f))
+    q = orient_faces(p[vperm], rank[f[fperm]])
+    np.testing.assert_array_equal(q.flipped, o.flipped[fperm])
+    np.testing.assert_array_equal(vperm[q.faces], o.faces[fperm])
+    # components are numbered differently, but group the same faces
+    pairs = set(zip(o.component[fperm].tolist(), q.component.tolist()))
+    assert len(pairs) == o.n_components == q.n_components == 2
+
+
+def test_orienting_an_outward_mesh_is_a_no_op():
+    p, f = _two_shells()
+    outward = orient_faces(p, f).faces
+    again = orient_faces(p, outward)
+    assert again.n_flipped == 0
+    np.testing.assert_array_equal(again.faces, outward)
+    assert again.faces is not outward  # a new array, the input stays the caller's
+    inward = orient_faces(p, outward, mode="inward")
+    assert inward.n_flipped == len(f)
+
+
+def test_sorted_orientation_matches_the_input_order_result():
+    p, f = _two_shells()
+    o = orient_faces(p, f)
+    s = orient_sorted(p, f)
+    np.testing.assert_array_equal(np.sort(s.order), np.arange(len(f)))
+    np.testing.assert_array_equal(s.faces, o.faces[s.order])
+    np.testing.assert_array_equal(s.flip, o.flipped[s.order])
+    np.testing.assert_array_equal(s.component, o.component[s.order])
+    np.testing.assert_array_equal(s.input_faces(f), o.faces)
+    assert s.n_flipped == o.n_flipped
+    lo = s.faces.min(axis=1)
+    assert np.all(np.diff(lo) >= 0)  # sorted by smallest vertex
+    with pytest.raises(ValueError, match="orientation must be"):
+        orient_sorted(p, f, mode="keep")

@@ -13,6 +13,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from conftest import run_pvbatch
 
 from pverosion.paraview_setup import host_requirements, plugin_dir, probe
 
@@ -38,12 +39,7 @@ def _environment() -> dict:
 
 
 def _pvbatch(script: Path, out: Path) -> subprocess.CompletedProcess:
-    env = _environment()
-    command = [PVBATCH, str(script), str(out)]
-    if shutil.which("xvfb-run") and not env.get("DISPLAY"):
-        # a display number of our own (-a alone races with other xvfb-runs starting at :99), 24-bit colour
-        command = ["xvfb-run", "-a", "-n", str(100 + os.getpid() % 800), "-s", "-screen 0 1024x768x24", *command]
-    return subprocess.run(command, capture_output=True, text=True, env=env, cwd=out)
+    return run_pvbatch([PVBATCH, str(script), str(out)], env=_environment(), cwd=out)
 
 
 @needs_paraview

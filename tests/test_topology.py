@@ -15,6 +15,7 @@ from pverosion.kernels import (
     uniform_laplacian,
     vertex_face_incidence,
 )
+from pverosion.kernels.topology import halfedge_twins, locality_sorted, sorted_twins
 
 
 def test_closed_sphere_edges_follow_euler():
@@ -94,3 +95,41 @@ def test_locality_order_sorts_faces_by_smallest_vertex():
     assert np.array_equal(np.sort(order), np.arange(len(f)))
     lo = f[order].min(axis=1)
     assert np.all(np.diff(lo) >= 0)
+
+
+def test_locality_sorted_is_the_order_and_the_gathered_faces():
+    rng = np.random.default_rng(2)
+    s = pv.Icosphere(nsub=3)
+    f = s.regular_faces[rng.permutation(s.n_cells)].astype(np.int64)
+    order, rows = locality_sorted(f, s.n_points)
+    np.testing.assert_array_equal(order, locality_order(f, s.n_points))
+    np.testing.assert_array_equal(rows, f[order])
+
+
+def test_sorted_twins_equal_the_twins_of_the_sorted_faces():
+    rng = np.random.default_rng(3)
+    s = pv.Icosphere(nsub=2)
+    # a scrambled closed surface, and random faces with repeated vertices and edges used by 3+ faces
+    for f, n in ((s.regular_faces[rng.permutation(s.n_cells)].astype(np.int64), s.n_points),
+                 (rng.integers(0, 12, (150, 3)), 12)):
+        order, rows, partner, others = sorted_twins(f, n)
+        np.testing.assert_array_equal(order, locality_order(f, n))
+        np.testing.assert_array_equal(rows, f[order])
+        expected = halfedge_twins(rows, n)
+        np.testing.assert_array_equal(partner, expected[0])
+        np.testing.assert_array_equal(others, expected[1])
+        via_incidence = halfedge_twins(rows, n, vertex_face_incidence(rows, n))
+        np.testing.assert_array_equal(via_incidence[0], expected[0])
+        np.testing.assert_array_equal(via_incidence[1], expected[1])
+
+
+def test_twins_of_a_closed_surface_pair_up_opposite_half_edges():
+    s = pv.Icosphere(nsub=2)
+    f = s.regular_faces.astype(np.int64)
+    partner, others = halfedge_twins(f, s.n_points)
+    assert np.all(others == 1)
+    h = np.arange(3 * len(f))
+    np.testing.assert_array_equal(partner[partner], h)  # an involution
+    start, end = f.ravel(), np.roll(f, -1, axis=1).ravel()
+    np.testing.assert_array_equal(start[partner], end)  # the twin runs the other way
+    np.testing.assert_array_equal(end[partner], start)

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import pyvista as pv
+from conftest import run_pvbatch
 
 from pverosion.examples import load_cube
 from pverosion.filters.weathering import Weathering
@@ -269,16 +270,48 @@ def test_cli_screenshot_and_paraview_script(series_path, tmp_path):
     assert bad.returncode == 2 and "out of range" in bad.stderr
 
 
+_LOAD_STATE = """
+import sys
+
+import numpy as np
+from paraview.simple import GetActiveView, GetColorTransferFunction, GetSources, LoadState, Render, SaveScreenshot
+from vtkmodules.numpy_interface import dataset_adapter as dsa
+from vtkmodules.vtkIOImage import vtkPNGReader
+
+LoadState(sys.argv[1])
+readers = [s for s in GetSources().values() if s.GetXMLName() == "PVDReader"]
+print("FILE", readers[0].FileName)
+print("STEPS", len(readers[0].TimestepValues))
+print("RGB", " ".join(map(repr, GetColorTransferFunction("mean_curvature").RGBPoints)))
+Render()
+SaveScreenshot(sys.argv[2], GetActiveView(), ImageResolution=[320, 240])
+png = vtkPNGReader()
+png.SetFileName(sys.argv[2])
+png.Update()
+print("SPREAD", np.asarray(dsa.WrapDataObject(png.GetOutput()).PointData[0]).std(axis=0).max())
+"""
+
+
 @pytest.mark.skipif(shutil.which("pvbatch") is None, reason="ParaView's pvbatch is not installed")
 def test_paraview_state_opens_in_paraview(series_path, tmp_path):
     from pverosion.paraview_state import write_paraview_state
 
     state = write_paraview_state(Series(series_path), series_path, tmp_path / "cube.pvsm")
-    text = state.read_text()
-    assert series_path.name in text and "mean_curvature" in text
+    loader = tmp_path / "load.py"
+    loader.write_text(_LOAD_STATE)
+    done = run_pvbatch([shutil.which("pvbatch"), str(loader), str(state), str(tmp_path / "shot.png")],
+                       screen="640x480x24", timeout=600, cwd=tmp_path)
+    assert done.returncode == 0, (done.stdout + done.stderr)[-4000:]
+    lines = dict(line.split(" ", 1) for line in done.stdout.splitlines() if line.split(" ", 1)[0].isupper())
+    assert Path(lines["FILE"]) == series_path.resolve()  # ParaView reopens the series with all its steps
+    assert int(lines["STEPS"]) == STEPS
     h = pv.read(Series(series_path).files[-1])["mean_curvature"]
     limit = np.percentile(np.abs(h), 98.0)
-    assert f"{-limit:.6g}"[:6] in text  # the symmetric colour limits reached ParaView's lookup table
+    rgb = np.array(lines["RGB"].split(), dtype=float).reshape(-1, 4)
+    # the viewer's colour map: blue, green, red at the symmetric limits of the last step's curvature
+    np.testing.assert_allclose(rgb[:, 0], [-limit, 0.0, limit], rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(rgb[:, 1:], [[0, 0, 1], [0, 0.8, 0], [1, 0, 0]], atol=0.01)
+    assert float(lines["SPREAD"]) > 10  # the state renders the mesh, not a blank view
 
 
 def test_readme_screenshot(series_path, tmp_path):

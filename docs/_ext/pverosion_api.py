@@ -154,13 +154,22 @@ def index_page(modules: tuple[str, ...]) -> str:
     return "\n".join(lines)
 
 
+def _subcommands(parser: argparse.ArgumentParser, prefix: str = "") -> dict[str, argparse.ArgumentParser]:
+    """The subcommands of ``parser`` by name, each followed by its own (``"paraview setup"``)."""
+    found = {}
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                found[prefix + name] = sub
+                found.update(_subcommands(sub, f"{prefix}{name} "))
+    return found
+
+
 def cli_parsers() -> dict[str, argparse.ArgumentParser]:
-    """Every ``pverosion`` subcommand's parser, by name, in the order of ``pverosion --help``."""
+    """Every ``pverosion`` subcommand's parser, nested ones too, by name, in the order of ``pverosion --help``."""
     from pverosion.cli import build_parser
 
-    parser = build_parser()
-    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    return dict(action.choices.items())
+    return _subcommands(build_parser())
 
 
 def _documented(objects, module_name: str, name: str) -> bool:

@@ -58,7 +58,7 @@ class CliDirective(Directive):
         try:
             result = []
             for name, sub in cli_parsers().items():
-                section = nodes.section(ids=[f"cli-{name}"], names=[f"pverosion {name}"])
+                section = nodes.section(ids=[f"cli-{name.replace(' ', '-')}"], names=[f"pverosion {name}"])
                 section += nodes.title(text=f"pverosion {name}")
                 section += nodes.literal_block(text=sub.format_help().rstrip())
                 result.append(section)

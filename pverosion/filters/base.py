@@ -577,9 +577,13 @@ def set_multiblock(out, blocks) -> None:
     out.ShallowCopy(result)
 
 
-def set_point_array(mesh, name: str, values: np.ndarray) -> None:
-    """Add (or replace) point array ``name`` on ``mesh`` from an (N,) or (N, k) array."""
-    arr = numpy_support.numpy_to_vtk(np.ascontiguousarray(values, dtype=np.float64), deep=True)
+def set_point_array(mesh, name: str, values: np.ndarray, *, copy: bool = True) -> None:
+    """Add (or replace) point array ``name`` on ``mesh`` from an (N,) or (N, k) array.
+
+    With ``copy=False`` the VTK array shares the memory of ``values`` (and keeps
+    it alive): for fresh results that nothing modifies afterwards.
+    """
+    arr = numpy_support.numpy_to_vtk(np.ascontiguousarray(values, dtype=np.float64), deep=copy)
     arr.SetName(name)
     mesh.GetPointData().AddArray(arr)
 

@@ -12,9 +12,9 @@ from pverosion.filters.base import (
     set_field_value,
     set_point_array,
 )
-from pverosion.kernels.curvature import principal_curvatures
+from pverosion.kernels.curvature import CurvatureOperator, principal_curvatures
 from pverosion.kernels.normalize import NORMALIZATIONS, normalize_curvature
-from pverosion.kernels.orientation import ORIENTATIONS, orient_faces
+from pverosion.kernels.orientation import ORIENTATIONS, orient_sorted
 from pverosion.kernels.validation import as_triangle_mesh
 
 __all__ = ["Curvature"]
@@ -55,24 +55,30 @@ class Curvature(ErosionFilter):
         """Compute the curvature arrays of ``inp`` into ``out``."""
         points, faces = polydata_triangles(inp)
         points, faces = as_triangle_mesh(points, faces)
-        orientation = orient_faces(points, faces, mode=self.get_option("orientation"))
-        self.UpdateProgress(0.3)
-        result = principal_curvatures(points, orientation.faces)
+        mode = self.get_option("orientation")
+        if mode == "keep":
+            n_flipped = 0
+            result = principal_curvatures(points, faces)
+        else:
+            # the orientation's faces come sorted the way the curvature operator sorts them
+            oriented = orient_sorted(points, faces, mode=mode)
+            n_flipped = oriented.n_flipped
+            result = CurvatureOperator.from_sorted(oriented.faces, len(points))(points)
         out.ShallowCopy(inp)
-        if orientation.n_flipped:
-            replace_triangles(out, orientation.faces)
-        mean = result.mean
-        set_point_array(out, "mean_curvature", mean)
-        set_point_array(out, "gaussian_curvature", result.gaussian)
-        set_point_array(out, "k1", result.k1)
-        set_point_array(out, "k2", result.k2)
-        set_point_array(out, "principal_direction_1", result.direction1)
-        set_point_array(out, "principal_direction_2", result.direction2)
-        set_point_array(out, "normals", result.normals)
+        if n_flipped:
+            replace_triangles(out, oriented.input_faces(faces))
+        mean = result.mean  # the result arrays are fresh: the output shares their memory instead of copying it
+        set_point_array(out, "mean_curvature", mean, copy=False)
+        set_point_array(out, "gaussian_curvature", result.gaussian, copy=False)
+        set_point_array(out, "k1", result.k1, copy=False)
+        set_point_array(out, "k2", result.k2, copy=False)
+        set_point_array(out, "principal_direction_1", result.direction1, copy=False)
+        set_point_array(out, "principal_direction_2", result.direction2, copy=False)
+        set_point_array(out, "normals", result.normals, copy=False)
         method = self.get_option("normalization")
         if method != "none":
-            set_point_array(out, "mean_curvature_normalized", normalize_curvature(mean, method))
+            set_point_array(out, "mean_curvature_normalized", normalize_curvature(mean, method), copy=False)
         out.GetPointData().SetActiveScalars("mean_curvature")
-        set_field_value(out, "face_orientation", orientation.mode)
-        set_field_value(out, "flipped_faces", orientation.n_flipped)
+        set_field_value(out, "face_orientation", mode)
+        set_field_value(out, "flipped_faces", n_flipped)
         set_field_value(out, "mean_abs_curvature", float(np.mean(np.abs(mean))))

@@ -386,6 +386,12 @@ class FreezeThaw(_ShardSource, TimeSteppedFilter):
     def execute(self, inp, out) -> None:
         """Advance (or restart) the cached simulation to the requested step and fill ``out``."""
         step = self.requested_step()
+        # refused before the graph is built: the requested cell count sets the estimate
+        per_step = self.get_option("paths_per_step")
+        visits = 4.0 * self.get_option("cells") ** (1.0 / 3.0) + 1.0  # links a path crosses, about the diameter
+        check_work(per_step * visits * 50.0, option="paths_per_step", what=f"{per_step} water paths")
+        if self.get_option("record_paths"):
+            check_memory(per_step * 64 * 16, option="paths_per_step", what=f"the record of {per_step} water paths")
         graph = self._graph(inp)
         key = (self._graph_key, self.GetMTime())
         if self._simulation is None or self._sim_key != key or self._step > step:
@@ -393,11 +399,6 @@ class FreezeThaw(_ShardSource, TimeSteppedFilter):
             self._sim_key = key
             self._step = 0
         sim = self._simulation
-        per_step = self.get_option("paths_per_step")
-        visits = 4.0 * graph.n_cells ** (1.0 / 3.0) + 1.0  # links a path crosses, about the graph's diameter
-        check_work(per_step * visits * 50.0, option="paths_per_step", what=f"{per_step} water paths")
-        if self.get_option("record_paths"):
-            check_memory(per_step * 64 * 16, option="paths_per_step", what=f"the record of {per_step} water paths")
         record = None
         start = self._step
         while self._step < step:

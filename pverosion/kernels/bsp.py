@@ -332,12 +332,15 @@ class BSPTree:
     @classmethod
     def from_json(cls, path: str | Path) -> BSPTree | LatticeBSPTree:
         """Load a tree written by :meth:`to_json`, or by :meth:`LatticeBSPTree.to_json` (a :class:`LatticeBSPTree`)."""
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
+        data = _read_json(path)
         if data.get("format") == LatticeBSPTree.FORMAT:
             return LatticeBSPTree.from_dict(data)
         if data.get("format") != "pverosion-bsp":
             raise ValueError(f"{path} is not a pverosion BSP file")
-        return cls(data["kind"], data["params"], data["negative"], data["positive"], data["leaf"])
+        try:
+            return cls(data["kind"], data["params"], data["negative"], data["positive"], data["leaf"])
+        except (KeyError, TypeError, ValueError) as error:
+            raise ValueError(f"{path}: damaged pverosion BSP file ({error})") from error
 
     @property
     def nbytes(self) -> int:
@@ -681,6 +684,22 @@ def _preorder_height(direction, right):
     return -1
 
 
+def _read_json(path: str | Path) -> dict:
+    """The JSON object in file ``path``; ``FileNotFoundError`` or a ``ValueError`` naming the file."""
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{path} is a folder, not a BSP file")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise FileNotFoundError(f"no such file: {path}") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"{path} is not a pverosion BSP file (not JSON text: {error})") from error
+    if not isinstance(data, dict):
+        raise ValueError(f"{path} is not a pverosion BSP file")
+    return data
+
+
 def _encode(array: np.ndarray) -> dict:
     return {"dtype": array.dtype.str, "data": base64.b64encode(zlib.compress(array.tobytes(), 9)).decode("ascii")}
 
@@ -836,7 +855,7 @@ class LatticeBSPTree:
     @classmethod
     def from_json(cls, path: str | Path) -> LatticeBSPTree:
         """Load a tree written by :meth:`to_json`."""
-        return cls.from_dict(json.loads(Path(path).read_text(encoding="utf-8")))
+        return cls.from_dict(_read_json(path))
 
 
 def build_from_labels(labels: np.ndarray, *, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)) -> LatticeBSPTree:

@@ -19,7 +19,7 @@ from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range, chunk_total
 from pverosion.kernels._threads import for_chunks, for_ranges
 from pverosion.kernels.geometry import face_normal_terms, meyer_corner_areas, vertex_normals
-from pverosion.kernels.topology import locality_order, vertex_face_incidence
+from pverosion.kernels.topology import locality_sorted, vertex_face_incidence
 from pverosion.kernels.validation import InvalidMeshError, as_faces, as_points
 
 __all__ = ["CurvatureOperator", "CurvatureResult", "CurvatureTracker", "principal_curvatures"]
@@ -426,7 +426,24 @@ class CurvatureOperator:
             raise InvalidMeshError("mesh is empty: it has no points")
         fcs = as_faces(faces, n_vertices)
         self.n_vertices = n_vertices
-        self.faces = fcs[locality_order(fcs, n_vertices)]
+        self.faces = locality_sorted(fcs, n_vertices)[1]
+
+    @classmethod
+    def from_sorted(cls, faces: np.ndarray, n_vertices: int) -> CurvatureOperator:
+        """An operator on faces already validated and sorted by their smallest vertex (stable).
+
+        The faces of :func:`~pverosion.kernels.orientation.orient_sorted` are;
+        the result equals the one built from the same faces in any order.
+
+        Parameters
+        ----------
+        faces : numpy.ndarray, shape (F, 3), int64
+        n_vertices : int
+        """
+        operator = cls.__new__(cls)
+        operator.n_vertices = int(n_vertices)
+        operator.faces = faces
+        return operator
 
     def __call__(self, points, *, normals=None) -> CurvatureResult:
         """Principal curvatures at ``points`` (V, 3); ``normals`` (V, 3) optional, else Max-weighted."""

@@ -23,11 +23,14 @@ models:
     τ = K θ^m and the erosion rate ε = k (τ - τ_c)^a. Above τ_c the particle
     picks up ``ε dt π r²`` of volume from its contact footprint; below τ_c it
     drops ``min(carried, k (τ_c - τ)^a dt π r²)`` onto it. The footprint is
-    the vertices within r of the contact point, reached along edges from the
+    the vertices within R of the contact point, reached along edges from the
     contact face's corners, each taking a share proportional to its area
-    times ``1 - (d / r)²`` (the face's corners by barycentric weight when no
-    vertex is that close); fixed and frozen vertices take no share, and a
-    vertex gives its share times its erodibility. Each vertex then moves
+    times ``1 - (d / R)²``, where R is r or, on a face with a longer edge,
+    that edge's length up to the fluid's kernel radius 4 r (a mesh cannot
+    carry a dent narrower than its faces); the corners of a face longer
+    still share by barycentric weight when no vertex is within R. Fixed and
+    frozen vertices take no share, and a vertex gives its share times its
+    erodibility. Each vertex then moves
     along its area-weighted normal by exactly the displacement that changes
     the enclosed volume by its sediment balance (eq. 8.7: the volume of a
     vertex's fan is linear in the vertex's displacement, ``ΔV = t |G| / 6``
@@ -237,8 +240,9 @@ def _footprint(points, faces, ring_ptr, ring_idx, areas, movable, f, centre, rad
 
     The footprint is the surface within ``radius`` of ``centre`` (the particle's contact point, a point of face
     ``f``), walked from the face's corners along edges; a vertex's weight is its area times
-    ``1 - (d / radius)²``. A footprint holding no vertex (a particle smaller than the face) falls back to the
-    face's corners weighted by the contact point's barycentric coordinates. The shares of vertices that cannot
+    ``1 - (d / radius)²``. A footprint holding no vertex (a face longer than the fluid's kernel radius) falls
+    back to the face's corners weighted by the contact point's barycentric coordinates. The shares of vertices
+    that cannot
     move (fixed or frozen) are left out rather than handed to the others, so the particle exchanges less
     instead of drilling the movable vertices next to a frozen patch. ``stamp`` (V,) holds the last ``mark``
     that visited each vertex.
@@ -308,7 +312,8 @@ def _exchange(points, faces, ring_ptr, ring_idx, areas, pos, vel, contact_face, 
               pending, movable, erodibility, dt, radius, d_min, k, tau_c, big_k, m, a):
     """Erosion/deposition between colliding particles and the surface under them (in particle order).
 
-    Each particle's exchange is spread over its contact footprint at the particle ``radius``
+    Each particle's exchange is spread over its contact footprint at the particle ``radius``, or at the
+    contact face's longest edge when that is longer, up to the fluid's kernel radius ``4 radius``
     (:func:`_footprint`). Updates ``sediment`` (N,) and ``pending`` (V,) in place; returns (eroded, deposited)
     volumes.
     """
@@ -335,7 +340,14 @@ def _exchange(points, faces, ring_ptr, ring_idx, areas, pos, vel, contact_face, 
             centre = v3.sub(x, v3.scale(nrm, v3.dot(nrm, v3.sub(x, a0))))
         else:
             centre = _closest_on_boundary(x, a0, b0, c0)
-        nt = _footprint(points, faces, ring_ptr, ring_idx, areas, movable, f, centre, radius, stamp, p, queue,
+        # a face longer than the particle cannot carry a dent as narrow as the particle: the footprint reaches as
+        # far as the face's longest edge, up to the fluid's kernel radius 4 r (the scale over which the water
+        # itself is smooth), so the exchange does not pile up on the corner it touches
+        longest = 0.0
+        for c in range(3):
+            longest = max(longest, v3.norm(v3.sub(v3.row(points, faces[f, (c + 1) % 3]), v3.row(points, faces[f, c]))))
+        reach = max(radius, min(longest, 4.0 * radius))
+        nt = _footprint(points, faces, ring_ptr, ring_idx, areas, movable, f, centre, reach, stamp, p, queue,
                         weights)
         if nt == 0:
             continue

@@ -39,8 +39,8 @@ from pverosion.kernels.intersection import candidate_pairs
 from pverosion.kernels.predicates import sign_orient2d, sign_orient3d
 from pverosion.kernels.validation import as_triangle_mesh
 
-__all__ = ["CASES", "IMPOSSIBLE_CASES", "IntersectionCurves", "canonical_vertices", "intersection_curves", "trace_polylines",
-           "unique_rows"]
+__all__ = ["CASES", "IMPOSSIBLE_CASES", "IntersectionCurves", "canonical_vertices", "coplanar_segments",
+           "intersection_curves", "trace_polylines", "unique_rows"]
 
 CASES = ("000", "001", "002", "011", "012", "022", "111", "112", "122", "222")
 """The thesis' classification of a line against a triangle: per edge, 0 (meets outside), 1 (at a vertex),
@@ -389,6 +389,123 @@ def coplanar_overlaps(points: np.ndarray, faces: np.ndarray, curves: Intersectio
     return curves.coplanar[_coplanar_overlaps(pts, np.ascontiguousarray(faces, dtype=np.int64), curves.coplanar)]
 
 
+@njit(cache=True)
+def _strictly_between(p, axis, a, b, v):
+    """Whether ``v``, on the line through a and b in the projection along ``axis``, lies strictly between them
+    (exact: coordinates compare exactly, and the projection keeps the order on the line)."""
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    c = i if p[a, i] != p[b, i] else j
+    return min(p[a, c], p[b, c]) < p[v, c] < max(p[a, c], p[b, c])
+
+
+@njit(cache=True)
+def _chord(p, canon, own, other, axis, orientation, k, keys, locs):
+    """The part of edge k of face ``own`` inside the coplanar face ``other`` (closed), exactly in the projection
+    along ``axis`` (``orientation``: the sign of ``other`` there): the number of its distinct ends (0, 1, 2 or
+    more when inconsistent), their keys (filled in ``keys`` (3, 3)) and locations on own and other (``locs``
+    (3, 2))."""
+    n_vertices = p.shape[0]
+    a, b = own[k], own[(k + 1) % 3]
+    found = 0
+    for end in range(2):  # the edge's ends inside the other face
+        v = a if end == 0 else b
+        there = _vertex_in(p, other, axis, orientation, v)
+        if there != _OUT and found < 3:
+            keys[found, 0], keys[found, 1], keys[found, 2] = VERTEX, canon[v], 0
+            locs[found, 0], locs[found, 1] = (k if end == 0 else (k + 1) % 3), there
+            found += 1
+    for j in range(3):
+        v = other[j]
+        if canon[v] == canon[a] or canon[v] == canon[b]:
+            continue
+        if _o2(p, axis, a, b, v) == 0 and _strictly_between(p, axis, a, b, v):  # the other's corner on the edge
+            if found == 3:
+                return 4
+            keys[found, 0], keys[found, 1], keys[found, 2] = VERTEX, canon[v], 0
+            locs[found, 0], locs[found, 1] = _EDGE + k, j
+            found += 1
+    for j in range(3):  # the edge crossing an edge of the other inside both
+        c, d = other[j], other[(j + 1) % 3]
+        if (_o2(p, axis, a, b, c) * _o2(p, axis, a, b, d) < 0
+                and _o2(p, axis, c, d, a) * _o2(p, axis, c, d, b) < 0):
+            if found == 3:
+                return 4
+            e1, e2 = _edge_key(canon, n_vertices, a, b), _edge_key(canon, n_vertices, c, d)
+            keys[found, 0], keys[found, 1], keys[found, 2] = EDGE_EDGE, min(e1, e2), max(e1, e2)
+            locs[found, 0], locs[found, 1] = _EDGE + k, _EDGE + j
+            found += 1
+    return found
+
+
+@njit(cache=True, nogil=True)
+def _chords_range(p, faces, canon, pairs, keys, locs, used, status, start, stop):
+    for i in range(start, stop):
+        tf, tg = faces[pairs[i, 0]], faces[pairs[i, 1]]
+        axis = _drop_axis(p, tf)
+        orient_f = _o2(p, axis, tf[0], tf[1], tf[2])
+        orient_g = _o2(p, axis, tg[0], tg[1], tg[2])
+        ends = np.zeros((3, 3), np.int64)
+        where = np.zeros((3, 2), np.int64)
+        for side in range(2):
+            own, other, orientation = (tf, tg, orient_g) if side == 0 else (tg, tf, orient_f)
+            for k in range(3):
+                found = _chord(p, canon, own, other, axis, orientation, k, ends, where)
+                if found > 2:
+                    status[i] = -1
+                if found != 2:
+                    continue
+                slot = 3 * side + k
+                used[i, slot] = True
+                for e in range(2):
+                    for c in range(3):
+                        keys[i, slot, e, c] = ends[e, c]
+                    locs[i, slot, e, side] = where[e, 0]  # on the face whose edge it is
+                    locs[i, slot, e, 1 - side] = where[e, 1]
+
+
+def _coplanar_chords(p, faces, canon, pairs) -> tuple:
+    """The cuts of overlapping coplanar pairs (K, 2): for every pair, the parts of each face's edges inside the
+    other face, as segments with keys (K, 6, 2, 3) and locations (K, 6, 2, 2) like those of crossing pairs,
+    and how many of the 6 slots (3 edges of f, then 3 of g) hold one (K, 6) bool; -1 in the first slot's flag
+    count (returned per pair, (K,)) when a part was inconsistent."""
+    n = pairs.shape[0]
+    keys = np.zeros((n, 6, 2, 3), np.int64)
+    locs = np.zeros((n, 6, 2, 2), np.int64)
+    used = np.zeros((n, 6), np.bool_)
+    status = np.zeros(n, np.int64)
+    for_ranges(_chords_range, n, p, faces, canon, pairs, keys, locs, used, status, min_items=HEAVY_ITEMS_PER_RANGE)
+    return keys, locs, used, status
+
+
+def coplanar_segments(pts: np.ndarray, fcs: np.ndarray, canon: np.ndarray, coplanar: np.ndarray):
+    """Segments that cut overlapping coplanar faces into pieces wholly inside or outside each other.
+
+    For every pair of ``coplanar`` (K, 2) whose faces overlap with their
+    interiors, the part of each edge of either face that lies inside the
+    other (closed) face, found exactly in the projection along the axis of
+    the first face's largest normal component. Its ends are vertices of
+    either face or the crossings of an edge of each (:data:`EDGE_EDGE`), keyed
+    like the ends of crossing pairs' segments.
+
+    Returns
+    -------
+    pairs : numpy.ndarray, shape (S, 2)
+    keys : numpy.ndarray, shape (S, 2, 3)
+    locations : numpy.ndarray, shape (S, 2, 2)
+    """
+    pts = np.ascontiguousarray(pts, dtype=np.float64)
+    fcs = np.ascontiguousarray(fcs, dtype=np.int64)
+    if len(coplanar):
+        coplanar = coplanar[_coplanar_overlaps(pts, fcs, coplanar)]
+    if len(coplanar) == 0:
+        return np.zeros((0, 2), np.int64), np.zeros((0, 2, 3), np.int64), np.zeros((0, 2, 2), np.int64)
+    keys, locs, used, status = _coplanar_chords(pts, fcs, canon, coplanar)
+    if np.any(status < 0):
+        raise RuntimeError("inconsistent overlap of a coplanar face pair (the exact predicates should prevent this)")
+    pair, slot = np.nonzero(used)
+    return coplanar[pair], keys[pair, slot], locs[pair, slot]
+
+
 # --- coordinates of the points -------------------------------------------------------------------------------
 
 
@@ -520,8 +637,26 @@ def _crossings_on_faces(p, faces, coords, segments, listed_face, listed_partner,
     return out
 
 
-def _split_at_triple_points(pts, fcs, keys, coords, segments, pairs, locations):
-    """Split the segments where the curves of three surfaces cross (a point of three faces).
+_EDGE_BITS = np.array([0b101, 0b011, 0b110, 0b001, 0b010, 0b100, 0b000])
+"""The edges of a face (bit k: edge k) that a location 0..6 lies on: a vertex on its two edges."""
+
+
+def _edge_along(loc0: np.ndarray, loc1: np.ndarray) -> np.ndarray:
+    """The edge (0..2) of a face that segments with their ends at locations ``loc0`` and ``loc1`` on it lie along,
+    -1 for segments that do not lie along an edge."""
+    common = _EDGE_BITS[loc0] & _EDGE_BITS[loc1]
+    return np.where(common == 0, -1, np.where(common & 1, 0, np.where(common & 2, 1, 2)))
+
+
+def _split_at_triple_points(pts, fcs, canon, keys, coords, segments, pairs, locations):
+    """Split the segments where the curves of three surfaces cross inside a face.
+
+    The point where the segments of two partner faces g and h cross inside
+    face f is named by what produces it: where an edge of g crosses h when
+    the segment of g lies along that edge (a coplanar cut, or g's edge in f's
+    plane), where an edge of g crosses an edge of h when both do, and where
+    the three planes meet otherwise; in that last case the segment of g and
+    h, where there is one, passes through it and is cut there too.
 
     Returns the keys, coordinates, segments, pairs and locations with the
     crossing points added and every crossed segment cut there.
@@ -536,48 +671,82 @@ def _split_at_triple_points(pts, fcs, keys, coords, segments, pairs, locations):
     face, other, seg = face[order], other[order], seg[order]
     start = np.flatnonzero(np.r_[True, face[1:] != face[:-1], True])
     crossings = _crossings_on_faces(pts, fcs, coords, segments, face, other, seg, start)
+    if len(crossings):
+        # a segment along an edge of f itself cannot cross another inside f: such a crossing is the rounding of the
+        # computed points (where a segment ends on that edge)
+        f, s1, s2 = crossings.T
+        own1, own2 = (pairs[s1, 0] != f).astype(np.int64), (pairs[s2, 0] != f).astype(np.int64)
+        on_rim = ((_edge_along(locations[s1, 0, own1], locations[s1, 1, own1]) >= 0)
+                  | (_edge_along(locations[s2, 0, own2], locations[s2, 1, own2]) >= 0))
+        crossings = crossings[~on_rim]
     if len(crossings) == 0:
         return keys, coords, segments, pairs, locations
-    n_faces = len(fcs)
-    f = crossings[:, 0]
-    g = np.where(pairs[crossings[:, 1], 0] == f, pairs[crossings[:, 1], 1], pairs[crossings[:, 1], 0])
-    h = np.where(pairs[crossings[:, 2], 0] == f, pairs[crossings[:, 2], 1], pairs[crossings[:, 2], 0])
+    n_faces, n_vertices = len(fcs), len(pts)
+    f, s1, s2 = crossings.T
+    # the partner of f in each segment's pair, its side there, and the partner's edge the segment lies along
+    side1, side2 = (pairs[s1, 0] == f).astype(np.int64), (pairs[s2, 0] == f).astype(np.int64)
+    g, h = pairs[s1, side1], pairs[s2, side2]
+    j1 = _edge_along(locations[s1, 0, side1], locations[s1, 1, side1])
+    j2 = _edge_along(locations[s2, 0, side2], locations[s2, 1, side2])
+
+    def edge_key(face_ids, j):
+        a, b = canon[fcs[face_ids, np.maximum(j, 0)]], canon[fcs[face_ids, (np.maximum(j, 0) + 1) % 3]]
+        return np.minimum(a, b) * n_vertices + np.maximum(a, b)
+
+    e1, e2 = edge_key(g, j1), edge_key(h, j2)
     tri = np.sort(np.stack([f, g, h], axis=1), axis=1)
-    new_keys = np.stack([np.full(len(tri), FACE_FACE_FACE), tri[:, 0], tri[:, 1] * n_faces + tri[:, 2]], axis=1)
-    # the segment of the third pair (g, h), where there is one, passes through the same point
+    new_keys = np.stack([np.full(len(f), FACE_FACE_FACE), tri[:, 0], tri[:, 1] * n_faces + tri[:, 2]], axis=1)
+    along1, along2 = j1 >= 0, j2 >= 0
+    both = along1 & along2
+    new_keys[both] = np.stack([np.full(both.sum(), EDGE_EDGE), np.minimum(e1, e2)[both], np.maximum(e1, e2)[both]],
+                              axis=1)
+    one = along1 & ~along2
+    new_keys[one] = np.stack([np.full(one.sum(), EDGE_FACE), e1[one], h[one]], axis=1)
+    one = along2 & ~along1
+    new_keys[one] = np.stack([np.full(one.sum(), EDGE_FACE), e2[one], g[one]], axis=1)
+    # locations of the new point on the two faces of each crossed segment: inside f, on the partner's edge or inside
+    loc1 = np.full((len(f), 2), _INSIDE, np.int64)
+    loc1[np.arange(len(f)), side1] = np.where(along1, _EDGE + j1, _INSIDE)
+    loc2 = np.full((len(f), 2), _INSIDE, np.int64)
+    loc2[np.arange(len(f)), side2] = np.where(along2, _EDGE + j2, _INSIDE)
+    # the segment of the third pair (g, h), where there is one, passes through a point of three planes
     pair_key = np.minimum(pairs[:, 0], pairs[:, 1]) * n_faces + np.maximum(pairs[:, 0], pairs[:, 1])
     by_key = np.argsort(pair_key)
     wanted = np.minimum(g, h) * n_faces + np.maximum(g, h)
     at = np.minimum(np.searchsorted(pair_key[by_key], wanted), len(by_key) - 1)
-    third = np.where(pair_key[by_key[at]] == wanted, by_key[at], -1)
-    split_seg = np.concatenate([crossings[:, 1], crossings[:, 2], third])
+    third = np.where((pair_key[by_key[at]] == wanted) & ~along1 & ~along2, by_key[at], -1)
+    split_seg = np.concatenate([s1, s2, third])
     split_key = np.concatenate([new_keys, new_keys, new_keys])
-    split_key, split_seg = split_key[split_seg >= 0], split_seg[split_seg >= 0]
+    split_loc = np.concatenate([loc1, loc2, np.full((len(f), 2), _INSIDE, np.int64)])
+    valid = split_seg >= 0
+    split_key, split_seg, split_loc = split_key[valid], split_seg[valid], split_loc[valid]
     all_keys, inverse = unique_rows(np.concatenate([keys, split_key]))
-    if len(all_keys) != len(keys) + len(unique_rows(split_key)[0]):
-        raise RuntimeError("a point where three faces meet was also found as another kind of point")
-    # the old points keep their order (FACE_FACE_FACE sorts last), the new ones follow
-    all_coords = np.concatenate([coords, _coordinates(pts, fcs, all_keys[len(keys):])])
+    old = inverse[:len(keys)]
+    all_coords = np.empty((len(all_keys), 3))
+    added = np.ones(len(all_keys), bool)
+    added[old] = False
+    all_coords[old] = coords
+    all_coords[added] = _coordinates(pts, fcs, all_keys[added])
+    segments = old[segments]
     split_point = inverse[len(keys):]
     split = np.zeros(n_seg, bool)
     split[split_seg] = True
     # every split segment becomes the chain of its crossing points, in order along it
-    s_idx, p_idx = unique_rows(np.stack([split_seg, split_point], axis=1))[0].T
+    rows, first_row = np.unique(split_seg * len(all_keys) + split_point, return_index=True)
+    s_idx, p_idx, p_loc = split_seg[first_row], split_point[first_row], split_loc[first_row]
     seg_a, seg_b = segments[s_idx, 0], segments[s_idx, 1]
     along = np.einsum("ij,ij->i", all_coords[p_idx] - all_coords[seg_a], all_coords[seg_b] - all_coords[seg_a])
     order = np.lexsort((along, s_idx))
-    s_idx, p_idx = s_idx[order], p_idx[order]
+    s_idx, p_idx, p_loc = s_idx[order], p_idx[order], p_loc[order]
     first = np.r_[True, s_idx[1:] != s_idx[:-1]]
     last = np.r_[s_idx[1:] != s_idx[:-1], True]
     piece_start = np.where(first, segments[s_idx, 0], np.r_[-1, p_idx[:-1]])
     pieces = np.concatenate([np.stack([piece_start, p_idx], axis=1),
                              np.stack([p_idx[last], segments[s_idx[last], 1]], axis=1)])
     owner = np.concatenate([s_idx, s_idx[last]])
-    piece_loc = np.full((len(pieces), 2, 2), _INSIDE, np.int64)
-    head = np.flatnonzero(first)
-    piece_loc[head, 0] = locations[s_idx[head], 0]  # the first piece keeps the segment's first end
-    tail = len(s_idx) + np.arange(int(last.sum()))
-    piece_loc[tail, 1] = locations[owner[tail], 1]  # the last piece keeps its second end
+    start_loc = np.where(first[:, None], locations[s_idx, 0], np.r_[np.zeros((1, 2), np.int64), p_loc[:-1]])
+    piece_loc = np.concatenate([np.stack([start_loc, p_loc], axis=1),
+                                np.stack([p_loc[last], locations[s_idx[last], 1]], axis=1)])
     out_seg = [segments[~split], pieces]
     out_pairs = [pairs[~split], pairs[owner]]
     out_loc = [locations[~split], piece_loc]
@@ -651,23 +820,33 @@ def intersection_curves(points, faces, *, group=None) -> IntersectionCurves:
     return curves_of(pts, fcs, group, canonical_vertices(pts))
 
 
-def curves_of(pts: np.ndarray, fcs: np.ndarray, group, canon: np.ndarray, query=None) -> IntersectionCurves:
+def curves_of(pts: np.ndarray, fcs: np.ndarray, group, canon: np.ndarray, query=None, *,
+              coplanar_cuts: bool = False) -> IntersectionCurves:
     """:func:`intersection_curves` of a validated mesh whose :func:`canonical_vertices` are ``canon`` (only of
-    the pairs with a face of ``query`` (F,) bool, when given)."""
+    the pairs with a face of ``query`` (F,) bool, when given). With ``coplanar_cuts``, the pairs of faces that
+    overlap in a common plane get segments too: the parts of each face's edges inside the other (see
+    :func:`coplanar_segments`), so that cutting along all segments leaves every piece of such a face wholly inside or
+    outside the other."""
     pairs = candidate_pairs(pts, fcs, group=group, query=query)
     status, keys, locs, cases = _classify_pairs(pts, fcs, canon, pairs)
     if np.any(status < 0):
         raise RuntimeError("inconsistent intersection of a face pair (the exact predicates should prevent this)")
     crossing = status == _CROSS
     case_counts = np.bincount(cases[status != _APART].ravel(), minlength=len(CASES)).astype(np.int64)
+    seg_pairs, seg_locs = pairs[crossing], locs[crossing]
     seg_keys = keys[crossing].reshape(-1, 3)
+    if coplanar_cuts:
+        chord_pairs, chord_keys, chord_locs = coplanar_segments(pts, fcs, canon, pairs[status == _COPLANAR])
+        seg_pairs = np.concatenate([seg_pairs, chord_pairs])
+        seg_locs = np.concatenate([seg_locs, chord_locs])
+        seg_keys = np.concatenate([seg_keys, chord_keys.reshape(-1, 3)])
     if len(seg_keys):
         unique, inverse = unique_rows(seg_keys)
         segments = inverse.reshape(-1, 2)
     else:
         unique, segments = np.zeros((0, 3), np.int64), np.zeros((0, 2), np.int64)
     unique, coords, segments, seg_pairs, seg_locs = _split_at_triple_points(
-        pts, fcs, unique, _coordinates(pts, fcs, unique), segments, pairs[crossing], locs[crossing])
+        pts, fcs, canon, unique, _coordinates(pts, fcs, unique), segments, seg_pairs, seg_locs)
     return IntersectionCurves(
         points=coords,
         point_keys=unique,

@@ -408,12 +408,12 @@ class GuardedMeshSolver:
             return True
         if self.repair == "topology":
             # imported here: the repair's exact predicates compile on import, and most runs never repair
-            from pverosion.kernels.mesh_repair import CoplanarOverlapError, RepairError
+            from pverosion.kernels.mesh_repair import RepairError
 
             try:
                 self._repair_topology()
-            except (CoplanarOverlapError, RepairError):
-                pass  # the parts meet flat on, or no clean surface came out: roll back as "retry" does
+            except RepairError:
+                pass  # no clean surface came out: roll back as "retry" does
             else:
                 self._clean = self._snapshot()
                 return True

@@ -18,7 +18,8 @@ from numba import njit
 
 from pverosion.kernels.predicates import orient2d
 
-__all__ = ["TriangleIndex", "box_triangles", "bucket_boxes", "overlap_grid", "point_inside", "ray_winding", "segment_crossings", "unit_normals"]
+__all__ = ["TriangleIndex", "box_triangles", "bucket_boxes", "overlap_grid", "point_inside", "ray_winding",
+           "ray_winding_without", "segment_crossings", "unit_normals"]
 
 
 @dataclass(frozen=True)
@@ -227,6 +228,42 @@ def point_inside(p, points, faces, lo, size, dims, start2, items2):
     return ray_winding(p, points, faces, lo, size, dims, start2, items2, -1, np.zeros(0, np.int64), -1) % 2 != 0
 
 
+@njit(cache=True, inline="always")
+def _ray_crossing(p, points, faces, t):
+    """+1 when the +z ray from ``p`` crosses triangle ``t`` above ``p`` and the triangle faces up, -1 when it faces
+    down, 0 when the ray misses it (claims on shared edges as in :func:`point_inside`)."""
+    a, bb, c = faces[t, 0], faces[t, 1], faces[t, 2]
+    ax, ay, az = points[a, 0], points[a, 1], points[a, 2]
+    bx, by, bz = points[bb, 0], points[bb, 1], points[bb, 2]
+    cx, cy, cz = points[c, 0], points[c, 1], points[c, 2]
+    area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+    if area == 0.0:
+        return 0
+    up = area > 0.0
+    if not up:  # seen from below: walk it the other way
+        bx, by, bz, cx, cy, cz = cx, cy, cz, bx, by, bz
+        area = -area
+    if not (_edge_claims(ax, ay, bx, by, p[0], p[1]) and _edge_claims(bx, by, cx, cy, p[0], p[1])
+            and _edge_claims(cx, cy, ax, ay, p[0], p[1])):
+        return 0
+    wa = (bx - p[0]) * (cy - p[1]) - (by - p[1]) * (cx - p[0])  # barycentric weights times area
+    wb = (cx - p[0]) * (ay - p[1]) - (cy - p[1]) * (ax - p[0])
+    z = (wa * az + wb * bz + (area - wa - wb) * cz) / area
+    if z > p[2]:
+        return 1 if up else -1
+    return 0
+
+
+@njit(cache=True, inline="always")
+def _column(p, lo, size, dims):
+    """Column of the (x, y) grid that holds ``p``, -1 outside the grid."""
+    i = int((p[0] - lo[0]) / size)
+    j = int((p[1] - lo[1]) / size)
+    if i < 0 or j < 0 or i >= dims[0] or j >= dims[1] or p[0] < lo[0] or p[1] < lo[1]:
+        return -1
+    return i + dims[0] * j
+
+
 @njit(cache=True)
 def ray_winding(p, points, faces, lo, size, dims, start2, items2, skip, face_group, group):
     """Winding number at ``p`` of the faces of ``group`` (all when ``group`` < 0), by the +z ray.
@@ -238,35 +275,37 @@ def ray_winding(p, points, faces, lo, size, dims, start2, items2, skip, face_gro
     the winding number just in front of it when it faces up, just behind it
     when it faces down. ``face_group`` (n_faces,) holds each face's group.
     """
-    i = int((p[0] - lo[0]) / size)
-    j = int((p[1] - lo[1]) / size)
-    if i < 0 or j < 0 or i >= dims[0] or j >= dims[1] or p[0] < lo[0] or p[1] < lo[1]:
+    b = _column(p, lo, size, dims)
+    if b < 0:
         return 0
-    b = i + dims[0] * j
     total = 0
     for q in range(start2[b], start2[b + 1]):
         t = items2[q]
         if t == skip or (group >= 0 and face_group[t] != group):
             continue
-        a, bb, c = faces[t, 0], faces[t, 1], faces[t, 2]
-        ax, ay, az = points[a, 0], points[a, 1], points[a, 2]
-        bx, by, bz = points[bb, 0], points[bb, 1], points[bb, 2]
-        cx, cy, cz = points[c, 0], points[c, 1], points[c, 2]
-        area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
-        if area == 0.0:
+        total += _ray_crossing(p, points, faces, t)
+    return total
+
+
+@njit(cache=True)
+def ray_winding_without(p, points, faces, lo, size, dims, start2, items2, source, left_out, face_group, group):
+    """:func:`ray_winding` leaving out every face whose ``source`` (n_faces,) is one of ``left_out`` (small, any
+    order) instead of a single face: at a point where several faces lie on top of each other (all of
+    ``left_out``), the winding number on the side of the ray without any of them."""
+    b = _column(p, lo, size, dims)
+    if b < 0:
+        return 0
+    total = 0
+    for q in range(start2[b], start2[b + 1]):
+        t = items2[q]
+        if group >= 0 and face_group[t] != group:
             continue
-        up = area > 0.0
-        if not up:  # seen from below: walk it the other way
-            bx, by, bz, cx, cy, cz = cx, cy, cz, bx, by, bz
-            area = -area
-        if not (_edge_claims(ax, ay, bx, by, p[0], p[1]) and _edge_claims(bx, by, cx, cy, p[0], p[1])
-                and _edge_claims(cx, cy, ax, ay, p[0], p[1])):
-            continue
-        wa = (bx - p[0]) * (cy - p[1]) - (by - p[1]) * (cx - p[0])  # barycentric weights times area
-        wb = (cx - p[0]) * (ay - p[1]) - (cy - p[1]) * (ax - p[0])
-        z = (wa * az + wb * bz + (area - wa - wb) * cz) / area
-        if z > p[2]:
-            total += 1 if up else -1
+        skipped = False
+        for s in range(left_out.shape[0]):
+            if source[t] == left_out[s]:
+                skipped = True
+        if not skipped:
+            total += _ray_crossing(p, points, faces, t)
     return total
 
 

@@ -5,7 +5,11 @@
    degenerate face on a curve has no plane to cut in.
 1. The intersection curves are found exactly
    (:func:`pverosion.kernels.intersection_curves.intersection_curves`).
-2. Every face that an intersection segment lies on, or whose edge a curve
+2. Faces that overlap in a common plane get segments too: the parts of
+   each one's edges inside the other, found exactly in 2-D
+   (:func:`pverosion.kernels.intersection_curves.coplanar_segments`), so that
+   every piece of either lies wholly inside or outside the other.
+   Every face that an intersection segment lies on, or whose edge a curve
    point splits, is cut along its segments: its polygons are rebuilt and
    triangulated by ear clipping (:func:`pverosion.kernels.polygon_cut.cut_triangles`).
    The pieces on both sides of a curve share the curve's points, so the
@@ -13,12 +17,17 @@
 3. The curves divide the surface into patches (faces connected across edges
    that are not on a curve). Each patch lies wholly inside or outside every
    other part of the surface: its winding number is read once, by a ray from
-   a point of its largest face.
+   a point of its largest face. A patch lying on other input faces (a
+   coplanar overlap) leaves all of them out of its ray, and each of them
+   adds 1 to its operand's winding number on its back side.
 4. Which patches stay depends on the operation. A repair keeps the boundary
    of the region of winding number >= 1: patches with winding number 0 just
    in front of them. A Boolean operation keeps, of each operand, the patches
    outside or inside the other, the thesis' temporary normals deciding
    which: a difference turns the subtracted operand's kept patches around.
+   Of coincident patches (faces overlapping in a plane, cut alike), only
+   those of the lowest input face stay, and only where the result lies on
+   one side of them.
 5. Optionally, the mesh is improved: the needles and caps the cutting made
    collapse, flip or split while the curve vertices stay; should faces come
    to meet, their vertices are locked and the improvement starts over.
@@ -45,9 +54,10 @@ from pverosion.kernels.intersection_curves import (
     trace_polylines,
     unique_rows,
 )
-from pverosion.kernels.mesh_query import bucket_boxes, ray_winding
+from pverosion.kernels.mesh_query import bucket_boxes, ray_winding, ray_winding_without
 from pverosion.kernels.orientation import orient_faces
 from pverosion.kernels.polygon_cut import cut_triangles
+from pverosion.kernels.predicates import sign_orient2d
 from pverosion.kernels.topology import _incidence, boundary_edges, edge_topology, halfedge_twins
 from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh
 
@@ -56,7 +66,8 @@ __all__ = ["OPERATIONS", "CoplanarOverlapError", "RepairError", "RepairResult", 
 
 
 class CoplanarOverlapError(ValueError):
-    """Faces of the input overlap in a common plane, which the repair and the Booleans do not cut."""
+    """Deprecated: no longer raised. Faces that overlap in a common plane are cut like any others; the name stays
+    for code that catches it."""
 
 
 OPERATIONS = ("union", "intersection", "difference", "reverse_difference")
@@ -233,9 +244,10 @@ def _root(parent, v):
 
 
 @njit(cache=True)
-def _patches(faces, n_vertices, cut_edges):
+def _patches(faces, n_vertices, cut_edges, pairs_only=False):
     """Patch of every face (F,), labels 0..C-1 in order of first face: faces connected across edges that are
-    not intersection edges (sorted keys a * V + b, a < b)."""
+    not intersection edges (sorted keys a * V + b, a < b); with ``pairs_only``, only across edges of exactly
+    two faces (pieces of coincident faces cut alike have edges of four)."""
     indptr, face_ids, _ = _incidence(faces, n_vertices)
     parent = np.arange(faces.shape[0])
     for f in range(faces.shape[0]):
@@ -246,6 +258,14 @@ def _patches(faces, n_vertices, cut_edges):
             at = np.searchsorted(cut_edges, a * n_vertices + b)
             if at < cut_edges.shape[0] and cut_edges[at] == a * n_vertices + b:
                 continue
+            if pairs_only:
+                others = 0
+                for s in range(indptr[a], indptr[a + 1]):
+                    g = face_ids[s]
+                    if g != f and (faces[g, 0] == b or faces[g, 1] == b or faces[g, 2] == b):
+                        others += 1
+                if others != 1:
+                    continue
             for s in range(indptr[a], indptr[a + 1]):
                 g = face_ids[s]
                 if g != f and (faces[g, 0] == b or faces[g, 1] == b or faces[g, 2] == b):
@@ -325,6 +345,123 @@ def _patch_windings(points, faces, face_group, reps, groups) -> tuple[np.ndarray
         out[rows] = _ray_windings(np.ascontiguousarray(centre[rows][:, perm]), reps[rows], groups[rows], turned,
                                   faces, lo, size, dims, start, items, face_group)
     return out, normal[np.arange(len(reps)), axis] < 0.0
+
+
+@njit(cache=True, nogil=True)
+def _winding_without_range(queries, start, left_out, group, points, faces, lo, size, dims, start2, items2, source,
+                           face_group, out, first, last):
+    for q in range(first, last):
+        out[q] = ray_winding_without(queries[q], points, faces, lo, size, dims, start2, items2, source,
+                                     left_out[start[q]:start[q + 1]], face_group, group[q])
+
+
+def _ray_windings_without(queries, start, left_out, group, points, faces, lo, size, dims, start2, items2, source,
+                          face_group) -> np.ndarray:
+    """:func:`ray_winding_without` of every query point (Q, 3), leaving out the faces whose source is one of
+    ``left_out[start[q]:start[q + 1]]``."""
+    out = np.empty(queries.shape[0], np.int64)
+    for_ranges(_winding_without_range, queries.shape[0], queries, start, left_out, group, points, faces, lo, size,
+               dims, start2, items2, source, face_group, out, min_items=HEAVY_ITEMS_PER_RANGE)
+    return out
+
+
+@njit(cache=True)
+def _facing(p, tri, axis):
+    """Exact sign of the ``axis`` component of the normal of triangle ``tri`` (three point indices)."""
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    return sign_orient2d(p[tri[0], i], p[tri[0], j], p[tri[1], i], p[tri[1], j], p[tri[2], i], p[tri[2], j])
+
+
+@njit(cache=True)
+def _coincident_faces(pts, fcs, centre, own, axis, start, partners):
+    """The input faces lying on every query point (Q, 3) of input face ``own`` (Q,): ``own`` itself and those of
+    its coplanar partners (CSR ``start``, ``partners`` over the input faces) that hold the point strictly inside,
+    exactly in the projection along ``axis`` (Q,). Returns the CSR (Q + 1,), (K,) of the faces found."""
+    counts = np.zeros(centre.shape[0] + 1, np.int64)
+    size = centre.shape[0]
+    for q in range(centre.shape[0]):
+        size += start[own[q] + 1] - start[own[q]]
+    found = np.empty(size, np.int64)
+    n = 0
+    for q in range(centre.shape[0]):
+        f, a = own[q], axis[q]
+        i, j = (a + 1) % 3, (a + 2) % 3
+        found[n] = f
+        n += 1
+        for s in range(start[f], start[f + 1]):
+            g = partners[s]
+            turn = _facing(pts, fcs[g], a)
+            inside = turn != 0
+            for k in range(3):
+                b, c = fcs[g, k], fcs[g, (k + 1) % 3]
+                if sign_orient2d(pts[b, i], pts[b, j], pts[c, i], pts[c, j], centre[q, i], centre[q, j]) != turn:
+                    inside = False
+            if inside:
+                found[n] = g
+                n += 1
+        counts[q + 1] = n
+    return counts, found[:n].copy()
+
+
+def _coincident_windings(pts, fcs, input_group, overlaps, points, faces, source, face_group, reps, n_groups):
+    """Winding numbers of every group (operand) just in front of and just behind the patches ``reps`` of the cut
+    mesh (``points``, ``faces``, input face ``source`` and group ``face_group`` of every face) where they lie on
+    input faces (``pts``, ``fcs``, groups ``input_group``) that overlap in a common plane (pairs ``overlaps``).
+
+    At the centroid of a patch's face, the input faces lying on it (its own
+    face f and the partners of f in ``overlaps`` that hold the point) are all
+    left out of the ray, which meets their plane only there: that gives the
+    winding numbers on the ray's side. Across the plane, each left-out face
+    of an operand adds 1 to that operand's winding number behind it (as its
+    own face does for a patch on no other face). Returns the windings in
+    front and behind (n_groups, R), whether each patch lies on another input
+    face (R,) bool, and whether f is the lowest of the input faces lying there
+    (R,) bool: of pieces lying on each other, those of the lowest face stand
+    for all.
+    """
+    both_ways = np.concatenate([overlaps, overlaps[:, ::-1]])
+    both_ways = both_ways[np.argsort(both_ways[:, 0], kind="stable")]
+    start = np.searchsorted(both_ways[:, 0], np.arange(len(fcs) + 1))
+    tri = points[faces[reps]]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    axis = np.where(normal[:, 2] != 0.0, 2, np.argmax(np.abs(normal), axis=1))
+    centre = tri.mean(axis=1)
+    own = source[reps]
+    left_start, left_out = _coincident_faces(pts, fcs, centre, own, axis, start,
+                                             np.ascontiguousarray(both_ways[:, 1]))
+    count = np.diff(left_start)
+    owner = np.repeat(np.arange(len(reps)), count)
+    lowest = np.minimum.reduceat(left_out, left_start[:-1]) == own
+    facing = _facings(pts, fcs, left_out, axis[owner])
+    up = facing[left_start[:-1]] > 0  # f comes first in every list
+    front = np.zeros((n_groups, len(reps)), np.int64)
+    back = np.zeros((n_groups, len(reps)), np.int64)
+    for a in np.unique(axis):
+        perm = [(a + 1) % 3, (a + 2) % 3, a]  # cyclic: the faces keep their orientation
+        turned = np.ascontiguousarray(points[:, perm])
+        lo, size, dims, col_start, items = _columns(turned, faces)
+        rows = np.flatnonzero(axis == a)
+        queries = np.ascontiguousarray(centre[rows][:, perm])
+        in_rows = np.isin(owner, rows)
+        sub_start = np.r_[0, np.cumsum(count[rows])]
+        sub = np.ascontiguousarray(left_out[in_rows])
+        for k in range(n_groups):
+            ray_side = _ray_windings_without(queries, sub_start, sub, np.full(len(rows), k), turned, faces, lo, size,
+                                             dims, col_start, items, source, face_group)
+            across = ray_side + np.add.reduceat(np.where(input_group[left_out] == k, facing, 0),
+                                                left_start[:-1])[rows]
+            front[k, rows] = np.where(up[rows], ray_side, across)
+            back[k, rows] = np.where(up[rows], across, ray_side)
+    return front, back, count > 1, lowest
+
+
+@njit(cache=True)
+def _facings(pts, fcs, which, axis):
+    """:func:`_facing` of the input faces ``which`` (K,) along ``axis`` (K,)."""
+    out = np.empty(which.shape[0], np.int64)
+    for q in range(which.shape[0]):
+        out[q] = _facing(pts, fcs[which[q]], axis[q])
+    return out
 
 
 @njit(cache=True)
@@ -615,19 +752,14 @@ def _corefine(pts, fcs, group, operation) -> RepairResult:
     (None: repair), each operand's region being where its winding number is at least 1: a patch stays when that
     region is on one side of it only, turned so that the region lies behind it."""
     canon = canonical_vertices(pts)
-    curves = curves_of(pts, fcs, None, canon)  # also where an operand meets itself
+    curves = curves_of(pts, fcs, None, canon, coplanar_cuts=True)  # also where an operand meets itself
     overlaps = coplanar_overlaps(pts, fcs, curves)
-    if len(overlaps):
-        f, g = overlaps[0]
-        raise CoplanarOverlapError(
-            f"{len(overlaps)} pairs of faces overlap in a common plane (first: faces {f} and {g}); cutting "
-            "coplanar overlaps is not supported: move or turn one part by a tiny amount first")
     faces, source, point_id = _cut_faces(pts, fcs, canon, curves)
     all_points = np.concatenate([pts, curves.points])
     n_all = len(all_points)
     seg = np.sort(point_id[curves.segments], axis=1)
     cut_edges = np.unique(seg[:, 0] * n_all + seg[:, 1])
-    patch = _patches(faces, n_all, cut_edges)
+    patch = _patches(faces, n_all, cut_edges, len(overlaps) > 0)
     source_group = np.zeros(len(faces), np.int64) if group is None else np.asarray(group)[source]
     reps = _representatives(all_points, faces, patch)
     # winding numbers of A and B just in front of every patch; behind it, its own operand's is one more
@@ -646,9 +778,17 @@ def _corefine(pts, fcs, group, operation) -> RepairResult:
                                         np.full(np.count_nonzero(rows), k))
         front[k, rows] = winding - (down & (own[rows] == k))
     back = front + (np.arange(n_groups)[:, None] == own)
+    lowest = np.ones(len(reps), bool)
+    if len(overlaps):  # patches on coplanar overlaps: the winding numbers across every face lying there
+        on_plane = np.isin(source[reps], overlaps)
+        rows = np.flatnonzero(on_plane)
+        front_c, back_c, shared, lowest_c = _coincident_windings(pts, fcs, fcs_group, overlaps, all_points, faces,
+                                                                 source, source_group, reps[rows], n_groups)
+        front[:, rows[shared]], back[:, rows[shared]] = front_c[:, shared], back_c[:, shared]
+        lowest[rows] = lowest_c
     region = _REGION[operation]
     inside_front, inside_back = region(*(front >= 1)), region(*(back >= 1))
-    stays, turns = inside_front != inside_back, inside_front
+    stays, turns = (inside_front != inside_back) & lowest, inside_front
     keep, turn = stays[patch], turns[patch]
     faces = np.where(turn[:, None], faces[:, ::-1], faces)[keep]
     source = source[keep]
@@ -754,8 +894,9 @@ def repair_intersections(points, faces, *, tolerance: float = DEFAULT_TOLERANCE,
         If the mesh is not closed.
     ValueError
         For a negative or non-finite tolerance.
-    CoplanarOverlapError
-        If faces overlap in a common plane (not supported).
+    RepairError
+        If the result would not be a closed, oriented 2-manifold without
+        self-intersections.
     """
     pts, fcs = as_triangle_mesh(points, faces)
     _check_closed(fcs, len(pts), "the mesh")
@@ -793,8 +934,9 @@ def boolean_meshes(points_a, faces_a, points_b, faces_b, operation: str, *, tole
         For an unknown operation, or a negative or non-finite tolerance.
     InvalidMeshError
         If an operand is not closed.
-    CoplanarOverlapError
-        If faces of A and B overlap in a common plane (not supported).
+    RepairError
+        If the result would not be a closed, oriented 2-manifold without
+        self-intersections.
     """
     if operation not in OPERATIONS:
         raise ValueError(f"operation must be one of {OPERATIONS}; got {operation!r}")

@@ -18,9 +18,9 @@ from numba import njit
 
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._threads import for_ranges
-from pverosion.kernels.topology import halfedge_twins, locality_order
+from pverosion.kernels.topology import sorted_twins
 
-__all__ = ["ORIENTATIONS", "Orientation", "orient_faces", "winding_number"]
+__all__ = ["ORIENTATIONS", "Orientation", "SortedOrientation", "orient_faces", "orient_sorted", "winding_number"]
 
 ORIENTATIONS = ("outward", "inward", "keep")
 """Accepted values of the ``orientation`` option."""
@@ -138,14 +138,19 @@ def _find(parent, v):
 
 @njit(cache=True, error_model="numpy")
 def _closed_volumes(points, faces, flip, component, n_comp, others):
-    """Signed volume of every component, with each hole closed by a cone to its rim's centroid."""
+    """Signed volume of every component, with each hole closed by a cone to its rim's centroid, and the
+    largest extent of the points along an axis."""
     n_vertices = points.shape[0]
-    ox = oy = oz = 0.0  # component loops: an array expression would compile numba's shape-error formatting
+    origin = np.zeros(3)
+    lo = points[0].copy()
+    hi = points[0].copy()
     for v in range(n_vertices):
-        ox += points[v, 0]
-        oy += points[v, 1]
-        oz += points[v, 2]
-    origin = (ox / n_vertices, oy / n_vertices, oz / n_vertices)
+        for d in range(3):
+            x = points[v, d]
+            origin[d] += x
+            lo[d] = min(lo[d], x)
+            hi[d] = max(hi[d], x)
+    origin /= n_vertices
     volume = np.zeros(n_comp)
     parent = np.arange(n_vertices)
     for f in range(faces.shape[0]):
@@ -183,7 +188,7 @@ def _closed_volumes(points, faces, flip, component, n_comp, others):
             pa = v3.sub(v3.row(points, a), origin)
             pb = v3.sub(v3.row(points, b), origin)
             volume[component[f]] += v3.dot(pb, v3.cross(pa, apex))
-    return volume / 6.0
+    return volume / 6.0, max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2])
 
 
 def orient_faces(
@@ -216,27 +221,87 @@ def orient_faces(
         raise ValueError(f"orientation must be one of {ORIENTATIONS}; got {mode!r}")
     if mode == "keep":
         return Orientation(faces, np.zeros(len(faces), bool), None, mode)
-    # work on faces sorted for memory locality; map the per-face results back
-    order = locality_order(faces, len(points))
-    local = faces[order]
-    partner, others = halfedge_twins(local, len(points))
-    flip, component = _propagate(local, partner)
-    comp = np.empty_like(component)
-    comp[order] = component
-    n_comp = int(component.max()) + 1
+    local = orient_sorted(points, faces, mode=mode)
+    flipped = local.input_flip()
+    out = _apply(faces, flipped) if local.n_flipped else faces.copy()
+    return Orientation(out, flipped, _unsort(local.component, local.order), mode)
 
-    volume = _closed_volumes(points, local, flip, component, n_comp, others)
-    extent = np.ptp(points, axis=0).max()
+
+@dataclass(frozen=True)
+class SortedOrientation:
+    """Result of :func:`orient_sorted`, in the face order of :func:`~pverosion.kernels.topology.locality_order`.
+
+    Attributes
+    ----------
+    order : numpy.ndarray, shape (F,), int64
+        ``faces[order]`` is the sorted input.
+    faces : numpy.ndarray, shape (F, 3), int64
+        The sorted faces in the chosen orientation.
+    flip : numpy.ndarray, shape (F,), bool
+        Sorted faces whose vertex order was reversed.
+    component : numpy.ndarray, shape (F,), int64
+        Edge-connected component of each sorted face.
+    n_flipped : int
+        Number of reversed faces.
+    """
+
+    order: np.ndarray
+    faces: np.ndarray
+    flip: np.ndarray
+    component: np.ndarray
+    n_flipped: int
+
+    def input_flip(self) -> np.ndarray:
+        """Mask (F,) of the reversed faces in the input order."""
+        return _unsort(self.flip, self.order)
+
+    def input_faces(self, faces: np.ndarray) -> np.ndarray:
+        """The input ``faces`` (F, 3), in their order, in the chosen orientation."""
+        return _apply(faces, self.input_flip())
+
+
+def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward") -> SortedOrientation:
+    """:func:`orient_faces` on the faces sorted by their smallest vertex, without mapping back.
+
+    Kernels that sort faces the same way for memory locality (such as
+    :class:`~pverosion.kernels.curvature.CurvatureOperator`) take the result's
+    faces as they are, which saves sorting, permuting and validating the faces
+    again; :func:`orient_faces` maps the result back to the input order.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3), float64
+    faces : numpy.ndarray, shape (F, 3), int64
+        Validated triangles.
+    mode : {"outward", "inward"}
+
+    Returns
+    -------
+    SortedOrientation
+    """
+    if mode not in ("outward", "inward"):
+        raise ValueError(f"orientation must be 'outward' or 'inward'; got {mode!r}")
+    order, local, partner, others = sorted_twins(faces, len(points))
+    flip, component = _propagate(local, partner)
+    n_comp = int(component.max()) + 1
+    volume, extent = _closed_volumes(points, local, flip, component, n_comp, others)
     decided = np.abs(volume) > 1e-9 * extent**3
     turn = decided & (volume < 0)
     if n_comp > 1:
         turn ^= _cavity_walls(points, _apply(local, flip ^ turn[component]), component, n_comp, decided)
     if mode == "inward":
         turn ^= decided
-    flip ^= turn[component]
-    flipped = np.empty_like(flip)
-    flipped[order] = flip
-    return Orientation(_apply(faces, flipped), flipped, comp, mode)
+    if turn.any():
+        flip ^= turn[component]
+    n_flipped = int(np.count_nonzero(flip))
+    return SortedOrientation(order, _apply(local, flip) if n_flipped else local, flip, component, n_flipped)
+
+
+def _unsort(values: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """The array ``out`` with ``out[order] = values`` (``order`` a permutation)."""
+    out = np.empty_like(values)
+    out[order] = values
+    return out
 
 
 @njit(cache=True, nogil=True)

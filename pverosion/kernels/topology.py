@@ -21,7 +21,9 @@ __all__ = [
     "edge_topology",
     "halfedge_twins",
     "locality_order",
+    "locality_sorted",
     "one_ring",
+    "sorted_twins",
     "vertex_face_incidence",
 ]
 
@@ -189,6 +191,40 @@ def _order_by_min_vertex(faces, n_vertices):
     return order
 
 
+@njit(cache=True, error_model="numpy")
+def _sort_by_min_vertex(faces, n_vertices):
+    start = np.zeros(n_vertices + 1, np.int64)
+    for f in range(faces.shape[0]):
+        start[min(faces[f, 0], faces[f, 1], faces[f, 2]) + 1] += 1
+    for v in range(n_vertices):
+        start[v + 1] += start[v]
+    order = np.empty(faces.shape[0], np.int64)
+    rows = np.empty_like(faces)
+    for f in range(faces.shape[0]):
+        lo = min(faces[f, 0], faces[f, 1], faces[f, 2])
+        i = start[lo]
+        order[i] = f
+        rows[i, 0], rows[i, 1], rows[i, 2] = faces[f, 0], faces[f, 1], faces[f, 2]
+        start[lo] += 1
+    return order, rows
+
+
+def locality_sorted(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`locality_order` and the sorted faces ``faces[order]``, from one pass.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64
+    n_vertices : int
+
+    Returns
+    -------
+    order : numpy.ndarray, shape (F,), int64
+    sorted_faces : numpy.ndarray, shape (F, 3)
+    """
+    return _sort_by_min_vertex(np.ascontiguousarray(faces), int(n_vertices))
+
+
 def locality_order(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     """Face permutation that sorts faces by their smallest vertex index (stable).
 
@@ -210,18 +246,81 @@ def locality_order(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return _order_by_min_vertex(faces, int(n_vertices))
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
-def _neighbours_range(faces, face_ids, corner_ids, after, before, start, stop):
-    """The vertices after and before the vertex of incidence slots ``start`` to ``stop`` in their faces."""
-    for s in range(start, stop):
-        g = face_ids[s]
-        c = corner_ids[s]
-        after[s] = faces[g, (c + 1) % 3]
-        before[s] = faces[g, (c + 2) % 3]
+@njit(cache=True, error_model="numpy")
+def _corner_slots(faces, n_vertices):
+    """The corners of every vertex, grouped per vertex in face order (a counting sort).
+
+    Returns ``indptr`` (V + 1,) and, per slot, the vertices after and before
+    the corner in its face and the half-edge ``3 f + k`` that starts there.
+    """
+    n_faces = faces.shape[0]
+    indptr = np.zeros(n_vertices + 1, np.int64)
+    for f in range(n_faces):
+        for k in range(3):
+            indptr[faces[f, k] + 1] += 1
+    for v in range(n_vertices):
+        indptr[v + 1] += indptr[v]
+    fill = indptr[:-1].copy()
+    after = np.empty(3 * n_faces, np.int32)
+    before = np.empty(3 * n_faces, np.int32)
+    half = np.empty(3 * n_faces, np.int32)
+    for f in range(n_faces):
+        _put_corners(faces, f, 3 * f, fill, after, before, half)
+    return indptr, after, before, half
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _put_corners(faces, f, h, fill, after, before, half):
+    """Store the three corners of face ``f`` (half-edges ``h``, ``h + 1``, ``h + 2``) in their vertices' slots."""
+    a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
+    s = fill[a0]
+    after[s], before[s], half[s] = a1, a2, h
+    fill[a0] += 1
+    s = fill[a1]
+    after[s], before[s], half[s] = a2, a0, h + 1
+    fill[a1] += 1
+    s = fill[a2]
+    after[s], before[s], half[s] = a0, a1, h + 2
+    fill[a2] += 1
+
+
+@njit(cache=True, error_model="numpy")
+def _sort_with_slots(faces, n_vertices):
+    """:func:`_sort_by_min_vertex` and :func:`_corner_slots` of the sorted faces, from two passes over ``faces``.
+
+    The corners of a vertex come in input face order rather than sorted
+    order, which changes nothing that :func:`_match_slots` computes.
+    """
+    n_faces = faces.shape[0]
+    start = np.zeros(n_vertices + 1, np.int64)
+    indptr = np.zeros(n_vertices + 1, np.int64)
+    for f in range(n_faces):
+        a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        start[min(a0, a1, a2) + 1] += 1
+        indptr[a0 + 1] += 1
+        indptr[a1 + 1] += 1
+        indptr[a2 + 1] += 1
+    for v in range(n_vertices):
+        start[v + 1] += start[v]
+        indptr[v + 1] += indptr[v]
+    fill = indptr[:-1].copy()
+    order = np.empty(n_faces, np.int64)
+    rows = np.empty_like(faces)
+    after = np.empty(3 * n_faces, np.int32)
+    before = np.empty(3 * n_faces, np.int32)
+    half = np.empty(3 * n_faces, np.int32)
+    for f in range(n_faces):
+        lo = min(faces[f, 0], faces[f, 1], faces[f, 2])
+        i = start[lo]
+        start[lo] += 1
+        order[i] = f
+        rows[i, 0], rows[i, 1], rows[i, 2] = faces[f, 0], faces[f, 1], faces[f, 2]
+        _put_corners(faces, f, 3 * i, fill, after, before, half)
+    return order, rows, indptr, after, before, half
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _twins_range(indptr, face_ids, corner_ids, after, before, partner, others, start, stop):
+def _match_range(indptr, after, before, half, partner, others, start, stop):
     """Twins and edge multiplicities of the half-edges leaving vertices ``start`` to ``stop``."""
     for a in range(start, stop):
         for s in range(indptr[a], indptr[a + 1]):
@@ -234,43 +333,62 @@ def _twins_range(indptr, face_ids, corner_ids, after, before, partner, others, s
                 if t == s:
                     continue
                 if after[t] == b:
-                    found = 3 * face_ids[t] + corner_ids[t]  # runs a -> b too
+                    found = half[t]  # runs a -> b too
                     count += 1
                 elif before[t] == b:
-                    found = 3 * face_ids[t] + (corner_ids[t] + 2) % 3  # runs b -> a
+                    corner = half[t] % 3
+                    found = half[t] - corner + (corner + 2) % 3  # runs b -> a
                     count += 1
-            h = 3 * face_ids[s] + corner_ids[s]
-            others[h] = count
+            others[half[s]] = count
             if count == 1:
-                partner[h] = found
+                partner[half[s]] = found
 
 
-def _twins(faces: np.ndarray, indptr: np.ndarray, face_ids: np.ndarray,
-           corner_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _match_slots(indptr: np.ndarray, after: np.ndarray, before: np.ndarray,
+                 half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Twin and edge multiplicity of every half-edge from the corner slots of :func:`_corner_slots`."""
+    partner = np.full(half.shape[0], -1, np.int64)
+    others = np.zeros(half.shape[0], np.int64)
+    for_ranges(_match_range, indptr.shape[0] - 1, indptr, after, before, half, partner, others)
+    return partner, others
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _incidence_range(faces, face_ids, corner_ids, after, before, half, start, stop):
+    for s in range(start, stop):
+        g = face_ids[s]
+        c = corner_ids[s]
+        after[s] = faces[g, (c + 1) % 3]
+        before[s] = faces[g, (c + 2) % 3]
+        half[s] = 3 * g + c
+
+
+def _incidence_slots(faces: np.ndarray, indptr: np.ndarray, face_ids: np.ndarray,
+                     corner_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     n_slots = face_ids.shape[0]
-    # the vertices after and before v in each face around v, stored contiguously per vertex
     after = np.empty(n_slots, np.int64)
     before = np.empty(n_slots, np.int64)
-    for_ranges(_neighbours_range, n_slots, faces, face_ids, corner_ids, after, before)
-    partner = np.full(3 * faces.shape[0], -1, np.int64)
-    others = np.zeros(3 * faces.shape[0], np.int64)
-    for_ranges(_twins_range, indptr.shape[0] - 1, indptr, face_ids, corner_ids, after, before, partner, others)
-    return partner, others
+    half = np.empty(n_slots, np.int64)
+    for_ranges(_incidence_range, n_slots, faces, face_ids, corner_ids, after, before, half)
+    return after, before, half
 
 
 def halfedge_twins(
     faces: np.ndarray, n_vertices: int, incidence: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The other half-edge of every edge, from the vertex-face incidence.
+    """The other half-edge of every edge, from the corners around each vertex.
 
     Half-edge ``h = 3 f + k`` runs from ``faces[f, k]`` to ``faces[f, (k + 1) % 3]``.
+    The corners are grouped per vertex by one counting sort that stores, per
+    corner, its two neighbours in the face; each half-edge then looks for its
+    edge's other uses among the corners of its start vertex only.
 
     Parameters
     ----------
     faces : numpy.ndarray, shape (F, 3), int64
     n_vertices : int
     incidence : tuple, optional
-        Reuse the result of :func:`vertex_face_incidence`.
+        Reuse the result of :func:`vertex_face_incidence` instead of sorting the corners again.
 
     Returns
     -------
@@ -280,8 +398,43 @@ def halfedge_twins(
         How many other faces use the edge: 0 on the boundary, 1 inside a
         manifold, 2 or more at non-manifold edges.
     """
-    indptr, face_ids, corner_ids = incidence if incidence is not None else vertex_face_incidence(faces, n_vertices)
-    return _twins(faces, indptr, face_ids, corner_ids)
+    if incidence is None and not _slots_fit_int32(len(faces), n_vertices):
+        incidence = vertex_face_incidence(faces, n_vertices)
+    if incidence is not None:
+        indptr, face_ids, corner_ids = incidence
+        after, before, half = _incidence_slots(faces, indptr, face_ids, corner_ids)
+    else:
+        indptr, after, before, half = _corner_slots(faces, int(n_vertices))
+    return _match_slots(indptr, after, before, half)
+
+
+def _slots_fit_int32(n_faces: int, n_vertices: int) -> bool:
+    """Whether half-edge and vertex indices fit the 32-bit corner slots."""
+    return 3 * n_faces < 2**31 and n_vertices < 2**31
+
+
+def sorted_twins(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`locality_sorted` and the :func:`halfedge_twins` of the sorted faces, from two passes over ``faces``.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64
+    n_vertices : int
+
+    Returns
+    -------
+    order : numpy.ndarray, shape (F,), int64
+    sorted_faces : numpy.ndarray, shape (F, 3)
+        ``faces[order]``.
+    partner, others : numpy.ndarray, shape (3F,), int64
+        As :func:`halfedge_twins` of ``sorted_faces`` returns them.
+    """
+    faces = np.ascontiguousarray(faces)
+    if not _slots_fit_int32(len(faces), n_vertices):
+        order, rows = locality_sorted(faces, n_vertices)
+        return (order, rows, *halfedge_twins(rows, n_vertices))
+    order, rows, indptr, after, before, half = _sort_with_slots(faces, int(n_vertices))
+    return (order, rows, *_match_slots(indptr, after, before, half))
 
 
 @njit(cache=True, error_model="numpy")

@@ -149,6 +149,19 @@ def main():
     check(abs(bounds[0] + 1) < 0.05 and abs(bounds[1] - 2) < 0.05, f"union spans x in [-1, 2]; bounds {bounds}")
     print("every filter ran with its defaults", flush=True)
 
+    # vector options are 3-element fields that reach the filter as x,y,z; tuning options are in the advanced panel
+    panel = make["shards"](Input=sphere(1.0), Cells=30)
+    direction = panel.SMProxy.GetProperty("WaterDirection")
+    check(direction.GetNumberOfElements() == 3 and list(panel.WaterDirection) == [0.0, 0.0, -1.0],
+          f"WaterDirection widget: {direction.GetNumberOfElements()} elements, {list(panel.WaterDirection)}")
+    panel.WaterDirection = [1.0, 0.5, -2.0]
+    panel.UpdatePipelineInformation()
+    received = [float(v) for v in panel.GetClientSideObject().GetWaterDirection().split(",")]
+    check(received == [1.0, 0.5, -2.0], f"the filter received water direction {received}")
+    visibility = {name: panel.SMProxy.GetProperty(name).GetPanelVisibility() for name in ("Seed", "KBreak", "Cells")}
+    check(visibility == {"Seed": "advanced", "KBreak": "advanced", "Cells": "default"}, f"panels: {visibility}")
+    pvs.Delete(panel)
+
     # 3. a bad option: its message in ParaView's output, and a failed update
     bad = make["weather"](Input=sphere(1.0), Iterations=2)
     (_, text) = messages_of(lambda: setattr(bad, "StepDivisor", -1.0))
