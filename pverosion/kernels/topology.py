@@ -135,14 +135,21 @@ def edge_topology(faces: np.ndarray, n_vertices: int) -> EdgeTopology:
 
 
 @njit(cache=True, error_model="numpy")
-def _incidence(faces, n_vertices):
-    n_faces = faces.shape[0]
+def _corner_offsets(faces, n_vertices):
+    """Where each vertex's corners start when the corners are grouped per vertex: ``indptr`` (V + 1,)."""
     indptr = np.zeros(n_vertices + 1, np.int64)
-    for f in range(n_faces):
+    for f in range(faces.shape[0]):
         for k in range(3):
             indptr[faces[f, k] + 1] += 1
     for v in range(n_vertices):
         indptr[v + 1] += indptr[v]
+    return indptr
+
+
+@njit(cache=True, error_model="numpy")
+def _incidence(faces, n_vertices):
+    n_faces = faces.shape[0]
+    indptr = _corner_offsets(faces, n_vertices)
     fill = indptr[:-1].copy()
     face_ids = np.empty(3 * n_faces, np.int64)
     corners = np.empty(3 * n_faces, np.int64)
@@ -254,12 +261,7 @@ def _corner_slots(faces, n_vertices):
     the corner in its face and the half-edge ``3 f + k`` that starts there.
     """
     n_faces = faces.shape[0]
-    indptr = np.zeros(n_vertices + 1, np.int64)
-    for f in range(n_faces):
-        for k in range(3):
-            indptr[faces[f, k] + 1] += 1
-    for v in range(n_vertices):
-        indptr[v + 1] += indptr[v]
+    indptr = _corner_offsets(faces, n_vertices)
     fill = indptr[:-1].copy()
     after = np.empty(3 * n_faces, np.int32)
     before = np.empty(3 * n_faces, np.int32)
