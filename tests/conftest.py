@@ -58,6 +58,16 @@ def bunny() -> pv.PolyData:
     return pv.read(path)
 
 
+@pytest.fixture(scope="session")
+def closed_bunny(bunny) -> tuple[np.ndarray, np.ndarray]:
+    """The bunny scan with its holes filled and every part turned outward: points (V, 3) and faces (F, 3)."""
+    from pverosion.hydraulic_scenes import fill_holes
+    from pverosion.kernels.mesh_repair import outward_parts
+
+    points, faces = fill_holes(np.asarray(bunny.points, float), bunny.regular_faces)
+    return points, outward_parts(points, faces)
+
+
 def icosphere(radius: float, nsub: int) -> pv.PolyData:
     """Icosphere with float64 points exactly on the sphere."""
     s = pv.Icosphere(radius=1.0, nsub=nsub)

@@ -5,12 +5,11 @@ the exact value and manifold3d's."""
 import numpy as np
 import pytest
 import pyvista as pv
-from conftest import DATA
 from test_repair_guarantees import _box, _join, assert_two_manifold
 
 from pverosion.kernels.geometry import signed_volume
 from pverosion.kernels.intersection_curves import coplanar_overlaps, intersection_curves
-from pverosion.kernels.mesh_repair import OPERATIONS, boolean_meshes, mesh_problems, outward_parts, repair_intersections
+from pverosion.kernels.mesh_repair import OPERATIONS, boolean_meshes, mesh_problems, repair_intersections
 
 manifold3d = pytest.importorskip("manifold3d")
 
@@ -194,17 +193,10 @@ def test_coplanar_segments_are_the_edges_inside_the_other_face():
     assert sorted(curves.point_keys[:, 0].tolist()) == [VERTEX, EDGE_EDGE, EDGE_EDGE]
 
 
-def test_a_scan_cut_flat_on_a_ground_slab():
+def test_a_scan_cut_flat_on_a_ground_slab(closed_bunny):
     """The bunny scan (holes filled) cut flat near its bottom, float32-exact, resting with that cut on a slab: the
     union is clean and its volume is the sum of the two (and manifold3d's)."""
-    from pverosion.hydraulic_scenes import fill_holes
-
-    path = DATA / "bunny.ply"
-    if not path.exists():
-        pytest.skip(f"real data not found at {path}")
-    scan = pv.read(path)
-    points, faces = fill_holes(np.asarray(scan.points, float), scan.regular_faces)
-    faces = outward_parts(points, faces)
+    points, faces = closed_bunny
     lo, hi = points.min(axis=0) - 0.01, points.max(axis=0) + 0.01
     lo[1] = points[:, 1].min() + 0.1 * np.ptp(points[:, 1])
     upper = _box(lo, hi)

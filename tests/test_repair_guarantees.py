@@ -6,7 +6,6 @@ manifold3d."""
 import numpy as np
 import pytest
 import pyvista as pv
-from conftest import DATA
 from test_intersection_curves import crossed_torus
 from test_mesh_repair import winding_numbers
 
@@ -153,15 +152,8 @@ def test_the_tangled_hand_repairs_to_a_clean_two_manifold():
 
 
 @pytest.fixture(scope="module")
-def folded_bunny():
-    from pverosion.hydraulic_scenes import fill_holes
-
-    path = DATA / "bunny.ply"
-    if not path.exists():
-        pytest.skip(f"real data not found at {path}")
-    scan = pv.read(path)
-    points, faces = fill_holes(np.asarray(scan.points, float), scan.regular_faces)
-    faces = outward_parts(points, faces)
+def folded_bunny(closed_bunny):
+    points, faces = closed_bunny
     assert mesh_problems(points, faces) == []
     # three vertices pushed sideways by 2.5 mean edges (and in by half of one): their faces fold over their
     # neighbours'
