@@ -91,7 +91,7 @@ def _inputs(folder: Path, data: Path) -> dict[str, list[str]]:
         "voxel": ["voxel", str(folder / "meander.vti"), "-o", f"{out}.vtm", "--iterations", "3",
                   "--source-velocity", "1.5,0,0"],
         "shard-graph": ["shard-graph", str(closed), "-o", f"{out}.vtm", "--cells", "200"],
-        "shards": ["shards", str(closed), "-o", f"{out}.vtm", "--cells", "200", "--iterations", "2",
+        "shards": ["freeze-thaw", str(closed), "-o", f"{out}.vtm", "--cells", "200", "--iterations", "2",
                    "--paths-per-step", "100"],
         "repair": ["repair", str(folder / "two_spheres.vtp"), "-o", f"{out}.vtp"],
         "boolean": ["boolean", str(closed), str(shifted), "--operation", "union", "-o", f"{out}.vtp"],

@@ -38,7 +38,7 @@ THREAD_ENVIRONMENT: dict[str, str] = {"OMP_WAIT_POLICY": "PASSIVE", "KMP_BLOCKTI
 POINTS_PER_THREAD = 8192
 """Input points per numba thread: smaller inputs run on fewer threads."""
 
-WORK_NOT_IN_POINTS = frozenset({"hydraulic", "shard-graph", "shards"})
+WORK_NOT_IN_POINTS = frozenset({"hydraulic", "shard-graph", "freeze-thaw"})
 """Stages whose work is set by their options (particles, cells) more than by the input's points: all threads."""
 
 _state = threading.local()  # .active: a stage_run is in progress in this thread (stages do not nest)

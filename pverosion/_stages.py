@@ -8,10 +8,11 @@ index matches :data:`pverosion.filters.ALL_FILTERS`.
 
 from __future__ import annotations
 
+import warnings
 from importlib import import_module
 from typing import NamedTuple
 
-__all__ = ["STAGE_INDEX", "Stage", "load_stage"]
+__all__ = ["DEPRECATED_COMMANDS", "STAGE_INDEX", "Stage", "load_stage", "resolve_command"]
 
 
 class Stage(NamedTuple):
@@ -33,21 +34,40 @@ STAGE_INDEX: tuple[Stage, ...] = (
     Stage("sample-materials", "Material field sampling", "pverosion.filters.materials:MaterialSampler"),
     Stage("voxel", "Voxel hydraulic erosion", "pverosion.filters.voxel:VoxelErosion"),
     Stage("shard-graph", "Voronoi shards", "pverosion.filters.shards:ShardGraph"),
-    Stage("shards", "Freeze-thaw weathering", "pverosion.filters.shards:FreezeThaw"),
+    Stage("freeze-thaw", "Freeze-thaw weathering", "pverosion.filters.shards:FreezeThaw"),
     Stage("repair", "Repair self-intersections", "pverosion.filters.repair:RepairIntersections"),
     Stage("boolean", "Boolean operation", "pverosion.filters.repair:BooleanOperation"),
 )
 """Every stage, in the order of :data:`pverosion.filters.ALL_FILTERS`."""
 
 
+DEPRECATED_COMMANDS: dict[str, str] = {"shards": "freeze-thaw"}
+"""Old stage names still accepted (with a ``DeprecationWarning``) by the CLI, batch scenarios and warm-up.
+
+``shards`` named the freeze-thaw stage on the command line while
+``mesh.erosion.shards`` built the shard graph; every front end now says
+``freeze-thaw`` / ``freeze_thaw`` and ``shard-graph`` / ``shard_graph``.
+"""
+
+
+def resolve_command(command: str, *, stacklevel: int = 2) -> str:
+    """``command``, or the current name of a deprecated stage name (warning ``DeprecationWarning``)."""
+    new = DEPRECATED_COMMANDS.get(command)
+    if new is None:
+        return command
+    warnings.warn(f"stage {command!r} is deprecated; use {new!r}", DeprecationWarning, stacklevel=stacklevel + 1)
+    return new
+
+
 def load_stage(command: str) -> type:
-    """Import and return the filter class of subcommand ``command``.
+    """Import and return the filter class of subcommand ``command`` (deprecated names accepted).
 
     Raises
     ------
     ValueError
         If ``command`` is not a stage.
     """
+    command = resolve_command(command)
     for stage in STAGE_INDEX:
         if stage.command == command:
             module, name = stage.target.split(":")

@@ -1,20 +1,30 @@
-"""Functional front end: ``pverosion.<stage>(mesh, ...)``, one call per filter class."""
+"""Functional front end: ``pverosion.<stage>(mesh, ...)``, one call per filter class.
+
+Every function takes all options of its filter as keyword-only arguments with
+the filter's defaults (vectors as tuples, unset vectors and structures as
+None); the option descriptions in the docstrings are generated from the
+filter's :class:`~pverosion.filters.base.Param` metadata (see
+:mod:`pverosion._frontend`), and ``progress_bar=True`` shows a tqdm bar.
+"""
 
 from __future__ import annotations
+
+import functools
+import warnings
+from collections.abc import Sequence
 
 import numpy as np
 import pyvista as pv
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 
-from pverosion._frontend import apply_filter
+from pverosion._frontend import apply_filter, renamed, run_filter, stage_function
 from pverosion.filters.curvature import Curvature
 from pverosion.filters.hydraulic import HydraulicErosion
-from pverosion.filters.materials import MaterialSampler
+from pverosion.filters.materials import MaterialSampler, MaterialsFromVolume
 from pverosion.filters.repair import BooleanOperation, RepairIntersections
 from pverosion.filters.shards import FreezeThaw, ShardGraph
 from pverosion.filters.voxel import VoxelErosion
 from pverosion.filters.weathering import Weathering
-from pverosion.kernels.bsp import BSPTree
 from pverosion.kernels.materials import (
     BSPMaterials,
     Gradual,
@@ -29,7 +39,9 @@ __all__ = ["boolean", "curvature", "freeze_thaw", "hydraulic_erosion", "material
            "sample_materials", "shard_graph", "voxel_erosion", "weather"]
 
 
-def curvature(mesh: pv.PolyData, *, orientation: str = "outward", normalization: str = "none") -> pv.PolyData:
+@stage_function(Curvature)
+def curvature(mesh: pv.PolyData, *, orientation: str = "outward", normalization: str = "none",
+              progress_bar: bool = False) -> pv.PolyData:
     """Per-vertex curvature of a triangle surface (Rusinkiewicz 2004).
 
     Parameters
@@ -37,14 +49,7 @@ def curvature(mesh: pv.PolyData, *, orientation: str = "outward", normalization:
     mesh : pyvista.PolyData
         Triangle surface; open meshes, holes and non-manifold spots are fine.
         It is not modified.
-    orientation : {"outward", "inward", "keep"}, default: "outward"
-        ``"outward"`` first makes faces consistent and outward, so convex
-        regions get H > 0 whatever the file's winding. ``"keep"`` trusts the
-        input's winding.
-    normalization : {"none", "symmetric", "shifted"}, default: "none"
-        Adds ``mean_curvature_normalized``: ``"symmetric"`` scales <-H, H> to
-        <-1, 1> (weathering), ``"shifted"`` maps <Hmin, Hmax> to <0, 1>
-        (hydraulic erosion).
+    {options}
 
     Returns
     -------
@@ -67,59 +72,45 @@ def curvature(mesh: pv.PolyData, *, orientation: str = "outward", normalization:
     >>> round(float(out["mean_curvature"].mean()), 3)
     0.5
     """
-    return apply_filter(Curvature, mesh, orientation=orientation, normalization=normalization)
+    return apply_filter(Curvature, mesh, orientation=orientation, normalization=normalization,
+                        progress_bar=progress_bar)
 
 
+_ERODIBILITY = ("array of shape (V,), callable or None",
+                ("Non-negative speed multiplier set from Python: per-vertex values, or a function of the current "
+                "points (N, 3) -> (N,). A string names a point array (as ``erodibility_array``)."))
+
+
+@stage_function(Weathering, python_only={"erodibility": _ERODIBILITY})
 def weather(
     mesh: pv.PolyData,
     *,
     iterations: int = 100,
     power: float = 1.0,
     step_divisor: float = 10.0,
+    normalization: str = "scale_free",
     direction: str = "laplacian",
-    erodibility: Erodibility | str = None,
     min_edge_ratio: float = 0.1,
     check_every: int = 10,
-    orientation: str = "outward",
     repair: str = "retry",
-    normalization: str = "scale_free",
+    erodibility_array: str = "",
+    orientation: str = "outward",
+    erodibility: Erodibility | str = None,
+    progress_bar: bool = False,
 ) -> pv.PolyData:
     """Curvature-driven weathering (Skorkovská et al. 2019, §3.3).
 
     Every step moves each convex vertex (H > 0) by ``H^n * e_avg / x`` along
     the unit uniform Laplacian, collapses triangles with edges shorter than
     ``min_edge_ratio * e_avg``, and every ``check_every`` steps rolls back and
-    shortens the steps where the surface has started to self-intersect.
+    shortens the steps where the surface has started to self-intersect
+    (normalisation: see docs/topics/invariance-erosion.md).
 
     Parameters
     ----------
     mesh : pyvista.PolyData
         Closed or open triangle surface; it is not modified.
-    iterations : int, default: 100
-        Number of steps.
-    power : float, default: 1.0
-        Power modifier n >= 1 (eq. 5); larger values erode protrusions and
-        spare flatter regions.
-    step_divisor : float, default: 10.0
-        x of eq. 3: the largest displacement per step is ``e_avg / x``.
-    direction : {"laplacian", "normal"}, default: "laplacian"
-        Unit uniform Laplacian, or the inward vertex normal.
-    erodibility : array of shape (V,), callable, str or None
-        Non-negative speed multiplier: per-vertex values, a function of the
-        current points (N, 3) -> (N,), or the name of a point array of ``mesh``.
-    min_edge_ratio : float, default: 0.1
-        Edge-collapse threshold relative to e_avg; 0 switches improvement off.
-    check_every : int, default: 10
-        Self-intersection guard period; 0 switches the guard off.
-    orientation : {"outward", "inward", "keep"}, default: "outward"
-    repair : {"retry", "topology", "off"}, default: "retry"
-        When the surface meets itself: roll back and shorten the steps there,
-        cut the mesh along the intersection curves and go on (a wall eroded
-        through opens a hole), or nothing.
-    normalization : {"scale_free", "paper"}, default: "scale_free"
-        Divide H by ``max |H|`` over the interior vertices (independent of units;
-        open scans erode like closed ones), or the paper's rule (only when
-        ``max |H| > 1``, over all vertices); see docs/topics/invariance-erosion.md.
+    {options}
 
     Returns
     -------
@@ -137,43 +128,36 @@ def weather(
     >>> bool(out.field_data["weathering_volume"][-1] < 8.0)
     True
     """
-    options = {"iterations": iterations, "power": power, "step_divisor": step_divisor, "direction": direction,
-               "min_edge_ratio": min_edge_ratio, "check_every": check_every, "orientation": orientation,
-               "repair": repair, "normalization": normalization}
     if isinstance(erodibility, str):
-        return apply_filter(Weathering, mesh, erodibility_array=erodibility, **options)
-    return apply_filter(Weathering, mesh, erodibility=erodibility, **options)
+        erodibility_array, erodibility = erodibility, None
+    return apply_filter(Weathering, mesh, iterations=iterations, power=power, step_divisor=step_divisor,
+                        normalization=normalization, direction=direction, min_edge_ratio=min_edge_ratio,
+                        check_every=check_every, repair=repair, erodibility_array=erodibility_array,
+                        orientation=orientation, erodibility=erodibility, progress_bar=progress_bar)
 
 
+@stage_function(MaterialsFromVolume, omitted=("tree_file",))
 def materials_from_volume(
     volume,
-    thresholds,
+    thresholds: Sequence[float] | str,
     *,
-    array: str | None = None,
+    array: str = "",
     method: str = "complete",
     seed: int = 0,
-    hardness=None,
+    hardness: Sequence[float] | str | None = None,
     gradual_scale: float = 0.0,
 ) -> BSPMaterials:
     """A BSP material field built from volume data (thesis §11.5).
+
+    The filter's ``tree_file`` option is left out: save the tree with
+    ``.tree.to_json(path)``. The field is built directly (no VTK pipeline
+    runs), so there is no ``progress_bar``.
 
     Parameters
     ----------
     volume : pyvista.ImageData or numpy.ndarray of shape (nx, ny, nz)
         The scalar volume (an image's ``array`` or active scalars).
-    thresholds : sequence of float
-        Material boundaries; material k is where the value exceeds k of them.
-    array : str, optional
-        Point array of an image volume.
-    method : {"complete", "simplified", "fitted"}, default: "complete"
-        C-BSP (exact partition by clipping), S-BSP (faster, coarser) or a
-        tree fitted to the voxels (exact at voxel centres, far smaller).
-    seed : int, default: 0
-        Face insertion order; the same seed gives the same tree.
-    hardness : sequence of float, optional
-        Hardness of materials 0..m; default 1, 2, ..., m + 1.
-    gradual_scale : float, default: 0
-        When > 0, materials soften away from the boundaries over this distance.
+    {options}
 
     Returns
     -------
@@ -189,6 +173,13 @@ def materials_from_volume(
     >>> field.sample([[11.5, 11.5, 11.5], [0.0, 0.0, 0.0]]).material_id.tolist()
     [1, 0]
     """
+    params = {p.name: p for p in MaterialsFromVolume.PARAMS}
+    for name, value in (("array", array), ("method", method), ("seed", seed), ("gradual_scale", gradual_scale)):
+        params[name].validate(value)
+    if isinstance(thresholds, str):
+        thresholds = [float(v) for v in params["thresholds"].validate(thresholds).split(",")]
+    if isinstance(hardness, str):
+        hardness = [float(v) for v in params["hardness"].validate(hardness).split(",")] if hardness else None
     if isinstance(volume, pv.ImageData):
         name = array or volume.active_scalars_name
         if name is None or name not in volume.point_data:
@@ -202,25 +193,27 @@ def materials_from_volume(
                            hardness=hardness, gradual=Gradual(gradual_scale) if gradual_scale > 0 else None)
 
 
+_GRID = {"dimensions": ("tuple of int, default: (64, 64, 64)", "Grid points along x, y, z."),
+         "bounds": ("tuple of float, default: (-1, 1, -1, 1, -1, 1)", "xmin, xmax, ymin, ymax, zmin, zmax.")}
+
+
+@stage_function(MaterialSampler, python_only=_GRID, omitted=("tree_file",))
 def sample_materials(
     field: MaterialField | str,
     *,
     dimensions=(64, 64, 64),
     bounds=(-1.0, 1.0, -1.0, 1.0, -1.0, 1.0),
     association: str = "point",
+    hardness: Sequence[float] | str | None = None,
+    progress_bar: bool = False,
 ) -> pv.ImageData:
     """Sample a material field on a regular grid, for slices (Figures 11.11–11.13, 11.18).
 
     Parameters
     ----------
     field : MaterialField or str
-        A field, or the path of a BSP tree JSON file.
-    dimensions : tuple of int, default: (64, 64, 64)
-        Grid points along x, y, z.
-    bounds : tuple of float, default: (-1, 1, -1, 1, -1, 1)
-        xmin, xmax, ymin, ymax, zmin, zmax.
-    association : {"point", "cell"}, default: "point"
-        Sample at the points or at the cell centres.
+        A field, or the path of a BSP tree JSON file (the filter's ``tree_file``).
+    {options}
 
     Returns
     -------
@@ -236,13 +229,35 @@ def sample_materials(
     spacing = np.where(dims > 1, (box[1::2] - box[::2]) / np.maximum(dims - 1, 1), 1.0)
     grid = pv.ImageData(dimensions=dims.tolist(), origin=box[::2].tolist(), spacing=spacing.tolist())
     if isinstance(field, str):
-        tree = BSPTree.from_json(field)
-        field = BSPMaterials(tree, np.arange(1.0, tree.leaf.max() + 2.0))
-    return pv.wrap(MaterialSampler(field=field, association=association).run(grid))
+        alg = MaterialSampler(tree_file=field, hardness=hardness, association=association)
+    else:
+        alg = MaterialSampler(field=field, hardness=hardness, association=association)
+    return run_filter(alg, grid, progress_bar=progress_bar)
 
 
-def voxel_erosion(grid: pv.ImageData, *, iterations: int = 100, time_step: float = 0.01, model: str = "cohesive",
-                  source_velocity=(0.0, 0.0, 0.0), **options) -> pv.MultiBlock:
+@stage_function(VoxelErosion)
+def voxel_erosion(
+    grid: pv.ImageData,
+    *,
+    iterations: int = 100,
+    time_step: float = 0.01,
+    model: str = "cohesive",
+    friction: float = 0.05,
+    erosion_rate: float = 0.01,
+    deposition_rate: float = 0.01,
+    fall_velocity: float = 0.2,
+    tau_erosion: float = 10.0,
+    tau_deposition: float = 10.0,
+    capacity: float = 0.7,
+    saturation: float = 0.5,
+    time_scale: float = 1.0,
+    viscosity: float = 1e-06,
+    advection: str = "semi-lagrangian",
+    source_velocity: Sequence[float] | str = (0.0, 0.0, 0.0),
+    tolerance: float = 1e-06,
+    extraction: str = "flying_edges",
+    progress_bar: bool = False,
+) -> pv.MultiBlock:
     """Voxel hydraulic erosion (Beneš et al. 2006) of a voxel grid.
 
     Parameters
@@ -252,17 +267,7 @@ def voxel_erosion(grid: pv.ImageData, *, iterations: int = 100, time_step: float
         ``drain``, ``hardness``, ``material_id`` point arrays); build one with
         :func:`pverosion.filters.voxel.voxel_grid_from_mesh`,
         ``voxel_grid_from_height_field`` or ``voxel_grid_from_volume``. Not modified.
-    iterations : int, default: 100
-        Time steps.
-    time_step : float, default: 0.01
-        Seconds per step.
-    model : {"cohesive", "cohesionless"}, default: "cohesive"
-    source_velocity : (3,) float, default: (0, 0, 0)
-        Velocity of the water entering at source voxels (m/s).
-    **options
-        Other options of :class:`pverosion.filters.VoxelErosion` (``friction``,
-        ``erosion_rate``, ``tau_erosion``, ``saturation``, ``viscosity``, ``advection``,
-        ``extraction``, ...).
+    {options}
 
     Returns
     -------
@@ -272,75 +277,128 @@ def voxel_erosion(grid: pv.ImageData, *, iterations: int = 100, time_step: float
         statistics) and ``surface`` (the material's closed isosurface with
         ``material_id``).
     """
-    velocity = ",".join(repr(float(v)) for v in np.asarray(source_velocity, dtype=float).reshape(3))
-    return apply_filter(VoxelErosion, grid, iterations=iterations, time_step=time_step, model=model,
-                        source_velocity=velocity, **options)
+    return apply_filter(
+        VoxelErosion, grid, iterations=iterations, time_step=time_step, model=model, friction=friction,
+        erosion_rate=erosion_rate, deposition_rate=deposition_rate, fall_velocity=fall_velocity,
+        tau_erosion=tau_erosion, tau_deposition=tau_deposition, capacity=capacity, saturation=saturation,
+        time_scale=time_scale, viscosity=viscosity, advection=advection, source_velocity=source_velocity,
+        tolerance=tolerance, extraction=extraction, progress_bar=progress_bar)
 
 
-
-def shard_graph(mesh: pv.PolyData, *, cells: int = 1000, pattern: str = "uniform", seed: int = 0,
-                **options) -> pv.MultiBlock:
+@stage_function(ShardGraph)
+def shard_graph(
+    mesh: pv.PolyData,
+    *,
+    cells: int = 1000,
+    pattern: str = "uniform",
+    jitter: float = 0.2,
+    layers: Sequence[float] | str | None = None,
+    tilt: float = 0.0,
+    radius_gradient: Sequence[float] | str = (0.0, 0.0, 0.0),
+    seed: int = 0,
+    progress_bar: bool = False,
+) -> pv.MultiBlock:
     """Fracture a closed mesh into Voronoi shards clipped exactly to it (Mateos et al. §4).
 
     Parameters
     ----------
     mesh : pyvista.PolyData
         A closed triangle mesh, convex or not. Not modified.
-    cells : int, default: 1000
-        About how many shards.
-    pattern : {"uniform", "grid", "hex", "slabs", "poisson", "vertices"}, default: "uniform"
-        Seed pattern (see :func:`pverosion.filters.shards.pattern_seeds`).
-    seed : int, default: 0
-    **options
-        ``jitter``, ``layers``, ``tilt``, ``radius_gradient`` of :class:`pverosion.filters.ShardGraph`.
+    {options}
 
     Returns
     -------
     pyvista.MultiBlock
         ``surface``, ``shards`` and ``links`` (see :mod:`pverosion.filters.shards`).
     """
-    return apply_filter(ShardGraph, mesh, cells=cells, pattern=pattern, seed=seed, **options)
+    return apply_filter(ShardGraph, mesh, cells=cells, pattern=pattern, jitter=jitter, layers=layers, tilt=tilt,
+                        radius_gradient=radius_gradient, seed=seed, progress_bar=progress_bar)
 
 
-def freeze_thaw(mesh: pv.PolyData, *, paths: int = 1000, cells: int = 1000, pattern: str = "uniform",
-                water_direction=(0.0, 0.0, -1.0), gravity=(0.0, 0.0, -1.0), resistance=0.0, core=None,
-                seed: int = 0, **options) -> pv.MultiBlock:
+_RESISTANCE = ("float, callable or pyvista.ImageData, default: 0.0",
+               ("Resistance field rho in [0, 1]: a constant (the filter's ``resistance``), a function of points "
+               "(n, 3) -> (n,), or a 3-D image whose active scalars are sampled at the link centroids."))
+_CORE = ('{"none", "surface"} or callable, default: "none"',
+         ("Cells never removed: a mode of the filter's ``core`` option, or a function of the cells' seed points "
+         "(n, 3) -> (n,) bool."))
+
+
+def _paths_to_steps(function):
+    """Accept the deprecated ``paths=N`` of :func:`freeze_thaw`: one time step of N paths."""
+    @functools.wraps(function)
+    def wrapper(*args, **kwargs):
+        if "paths" in kwargs:
+            paths = kwargs.pop("paths")
+            warnings.warn("freeze_thaw: paths=N is deprecated; use iterations= and paths_per_step=",
+                          DeprecationWarning, stacklevel=2)
+            if isinstance(paths, bool) or not isinstance(paths, (int, np.integer)) or paths < 0:
+                raise ValueError(f"paths must be a non-negative integer; got {paths!r}")
+            kwargs.update(iterations=1 if paths else 0, paths_per_step=max(int(paths), 1))
+        return function(*args, **kwargs)
+
+    return wrapper
+
+
+@_paths_to_steps
+@stage_function(FreezeThaw, python_only={"resistance": _RESISTANCE, "core": _CORE})
+def freeze_thaw(
+    mesh: pv.PolyData,
+    *,
+    iterations: int = 10,
+    paths_per_step: int = 100,
+    cells: int = 1000,
+    pattern: str = "uniform",
+    jitter: float = 0.2,
+    layers: Sequence[float] | str | None = None,
+    tilt: float = 0.0,
+    radius_gradient: Sequence[float] | str = (0.0, 0.0, 0.0),
+    seed: int = 0,
+    core="none",
+    core_plane: Sequence[float] | str | None = None,
+    core_window: Sequence[float] | str | None = None,
+    water_direction: Sequence[float] | str = (0.0, 0.0, -1.0),
+    spread: float = 0.0,
+    gravity: Sequence[float] | str = (0.0, 0.0, -1.0),
+    resistance=0.0,
+    water: float = 1.0,
+    k_solid: float = 0.1,
+    k_air: float = 0.05,
+    k_res: float = 0.25,
+    k_dmg: float = 0.5,
+    k_break: float = 0.4,
+    break_probability: float = 0.9,
+    complete_absorption: float = 1.0,
+    shards: bool = True,
+    record_paths: bool = True,
+    progress_bar: bool = False,
+) -> pv.MultiBlock:
     """Freeze–thaw weathering of a closed mesh on Voronoi shards (Mateos et al. §5).
+
+    The mesh is fractured as by :func:`shard_graph`; then each of the
+    ``iterations`` time steps runs ``paths_per_step`` water paths.
+    ``paths=N`` (deprecated) runs one step of N paths.
 
     Parameters
     ----------
     mesh : pyvista.PolyData
         A closed triangle mesh, convex or not. Not modified.
-    paths : int, default: 1000
-        Water paths to run.
-    cells, pattern, seed
-        Shards as in :func:`shard_graph`.
-    water_direction, gravity : (3,) float
-        Mean direction the water travels in, and the direction it flows in between links.
-    resistance : float, callable or pyvista.ImageData, default: 0
-        Resistance field rho in [0, 1]: a constant, a function of points (n, 3) -> (n,), or a 3-D image
-        whose active scalars are sampled at the link centroids.
-    core : {"none", "surface"} or callable, optional
-        Cells never removed: a mode of the filter's ``core`` option, or a function of the cells' seed
-        points (n, 3) -> (n,) bool.
-    **options
-        Other options of :class:`pverosion.filters.FreezeThaw` (``spread``, ``core_window``, ``k_solid``,
-        ``k_dmg``, ``shards``, ``record_paths``, ...).
+    {options}
 
     Returns
     -------
     pyvista.MultiBlock
-        ``surface``, ``shards``, ``links`` and ``paths`` (all of them) after the run.
+        ``surface``, ``shards``, ``links`` and ``paths`` (those of the last time step) after the run.
     """
-    if int(paths) != paths or paths < 0:
-        raise ValueError(f"paths must be a non-negative integer; got {paths!r}")
-    vector = {name: ",".join(repr(float(v)) for v in np.asarray(value, dtype=float).reshape(3))
-              for name, value in (("water_direction", water_direction), ("gravity", gravity))}
-    alg = FreezeThaw(iterations=1 if paths else 0, paths_per_step=max(int(paths), 1), cells=cells, pattern=pattern, seed=seed, **vector,
-                     **options)
+    options = {"iterations": iterations, "paths_per_step": paths_per_step, "cells": cells, "pattern": pattern,
+               "jitter": jitter, "layers": layers, "tilt": tilt, "radius_gradient": radius_gradient, "seed": seed,
+               "core_plane": core_plane, "core_window": core_window, "water_direction": water_direction,
+               "spread": spread, "gravity": gravity, "water": water, "k_solid": k_solid, "k_air": k_air,
+               "k_res": k_res, "k_dmg": k_dmg, "k_break": k_break, "break_probability": break_probability,
+               "complete_absorption": complete_absorption, "shards": shards, "record_paths": record_paths}
+    alg = FreezeThaw(**options)
     if callable(core):
         alg.SetCoreCells(core)
-    elif core is not None:
+    else:
         alg.set_option("core", core)
     if isinstance(resistance, pv.ImageData) or callable(resistance):
         alg.SetResistanceField(resistance)
@@ -348,11 +406,12 @@ def freeze_thaw(mesh: pv.PolyData, *, paths: int = 1000, cells: int = 1000, patt
         alg.set_option("resistance", resistance)
     if not isinstance(mesh, pv.PolyData):
         raise TypeError(f"freeze_thaw needs a PolyData surface; got {type(mesh).__name__}")
-    return pv.wrap(alg.run(mesh))
+    return run_filter(alg, mesh, progress_bar=progress_bar)
 
 
+@stage_function(RepairIntersections)
 def repair(mesh: pv.PolyData, *, orientation: str = "outward", tolerance: float = DEFAULT_TOLERANCE,
-           improve: bool = False) -> pv.PolyData:
+           improve: bool = False, progress_bar: bool = False) -> pv.PolyData:
     """Remove the self-intersections of a closed triangle mesh (Skorkovská's thesis §10.2).
 
     The intersection curves are found with exact predicates and the faces
@@ -365,18 +424,7 @@ def repair(mesh: pv.PolyData, *, orientation: str = "outward", tolerance: float 
     ----------
     mesh : pyvista.PolyData
         Closed triangle mesh. It is not modified.
-    orientation : {"outward", "keep"}, default: "outward"
-        ``"outward"`` first makes each closed part consistent and outward (a
-        part wholly inside another is a cavity wall; overlapping parts stay
-        outward and merge); ``"keep"`` trusts the input's winding, which must
-        then point outward.
-    tolerance : float, default: 1e-9
-        Pre-pass: nearly degenerate faces (an edge shorter than this, or a
-        corner this close to the opposite edge, relative to the bounding-box
-        diagonal) are removed first by edge collapse and flip; 0 skips it.
-    improve : bool, default: False
-        Improve the mesh afterwards: collapse the needles and flip or split
-        the caps that cutting along the curves made (the curves stay).
+    {options}
 
     Returns
     -------
@@ -411,11 +459,13 @@ def repair(mesh: pv.PolyData, *, orientation: str = "outward", tolerance: float 
     >>> bool(out.volume < two.volume)
     True
     """
-    return apply_filter(RepairIntersections, mesh, orientation=orientation, tolerance=tolerance, improve=improve)
+    return apply_filter(RepairIntersections, mesh, orientation=orientation, tolerance=tolerance, improve=improve,
+                        progress_bar=progress_bar)
 
 
+@stage_function(BooleanOperation, inputs=2)
 def boolean(a: pv.PolyData, b: pv.PolyData, operation: str = "union", *, orientation: str = "outward",
-            tolerance: float = DEFAULT_TOLERANCE, improve: bool = False) -> pv.PolyData:
+            tolerance: float = DEFAULT_TOLERANCE, improve: bool = False, progress_bar: bool = False) -> pv.PolyData:
     """Union, intersection or difference of two closed triangle meshes (Skorkovská's thesis §10.3).
 
     Parameters
@@ -424,12 +474,7 @@ def boolean(a: pv.PolyData, b: pv.PolyData, operation: str = "union", *, orienta
         Closed triangle meshes. They are not modified. An input that
         intersects itself stands for the region where its winding number is
         at least 1, as :func:`repair` would make it.
-    operation : {"union", "intersection", "difference", "reverse_difference"}, default: "union"
-        A ∪ B, A ∩ B, A ∖ B or B ∖ A.
-    orientation : {"outward", "keep"}, default: "outward"
-        As in :func:`repair`, for each input.
-    tolerance, improve
-        Pre-pass and mesh improvement, as in :func:`repair`.
+    {options}
 
     Returns
     -------
@@ -466,69 +511,67 @@ def boolean(a: pv.PolyData, b: pv.PolyData, operation: str = "union", *, orienta
         if not isinstance(mesh, vtkPolyData):
             hint = " (call .extract_surface() first)" if isinstance(mesh, pv.DataSet) else ""
             raise TypeError(f"boolean needs PolyData surfaces{hint}; {name} is {type(mesh).__name__}")
-    return pv.wrap(BooleanOperation(operation=operation, orientation=orientation, tolerance=tolerance,
-                                     improve=improve).run(a, b))
+    alg = BooleanOperation(operation=operation, orientation=orientation, tolerance=tolerance, improve=improve)
+    return run_filter(alg, a, b, progress_bar=progress_bar)
 
 
-def _spec(item, kind: str) -> str:
-    """One emitter/drain as the filter's text form (from text, numbers or the kernel's dataclass)."""
-    if isinstance(item, str):
-        return item
-    if isinstance(item, Emitter):
-        values = [*item.position, *item.direction, item.radius, item.rate]
-        if item.speed is not None:
-            values.append(item.speed)
-        return ",".join(repr(float(v)) for v in values)
-    if isinstance(item, Drain):
-        return f"{item.kind}:" + ",".join(repr(float(v)) for v in item.values)
-    if kind == "emitter":
-        return ",".join(repr(float(v)) for v in np.asarray(item, dtype=float).ravel())
-    raise TypeError(f"a drain is a string like 'plane:0,0,1,5' or a Drain; got {type(item).__name__}")
+_HYDRAULIC_ERODIBILITY = ("array of shape (V,), callable or None",
+                          ("Erosion multiplier set from Python: per-vertex values or a function of points. A string "
+                          "names a point array (as ``erodibility_array``)."))
 
 
+@renamed(emitters="emitter", drains="drain")
+@stage_function(HydraulicErosion, python_only={"erodibility": _HYDRAULIC_ERODIBILITY})
 def hydraulic_erosion(
     mesh: pv.PolyData,
     *,
-    emitters,
     iterations: int = 100,
     model: str = "curvature",
-    drains=(),
-    radius: float | None = None,
-    erodibility: Erodibility | str = None,
+    emitter: Emitter | str | Sequence | None = None,
+    drain: Drain | str | Sequence | None = None,
+    domain: Sequence[float] | str | None = None,
+    walls: bool = False,
+    radius: float = 0.0,
+    gravity: Sequence[float] | str = (0.0, 0.0, -9.81),
+    time_step: float = 0.0,
+    substeps: int = 2,
+    solver_iterations: int = 3,
+    viscosity: float = 0.01,
+    friction: float = 0.0,
+    max_particles: int = 250000,
+    power: float = 1.0,
+    step_divisor: float = 10.0,
+    normalization: str = "scale_free",
+    influence: float = 1.0,
+    erosion_rate: float = 0.001,
+    critical_stress: float = 5.0,
+    stress_constant: float = 1.0,
+    stress_power: float = 1.0,
+    rate_power: float = 1.0,
+    erodibility_array: str = "",
+    min_edge_ratio: float = 0.1,
+    check_every: int = 10,
+    repair: str = "retry",
+    orientation: str = "outward",
     seed: int = 0,
-    **options,
+    close_holes: bool = False,
+    erodibility: Erodibility | str = None,
+    progress_bar: bool = False,
 ) -> pv.MultiBlock:
     """Hydraulic erosion of a closed mesh by a particle fluid (Skorkovská 2019 §3.4; thesis ch. 8).
+
+    ``emitter`` (at least one) is required. Emitters and drains given as
+    :class:`~pverosion.kernels.particle_fluid.Emitter` /
+    :class:`~pverosion.kernels.particle_fluid.Drain` objects reach the
+    solver as they are. ``emitters=`` and ``drains=`` are deprecated names
+    of ``emitter=`` and ``drain=``.
 
     Parameters
     ----------
     mesh : pyvista.PolyData
         Closed triangle surface (terrain block or model); the water flows on
         its outside. It is not modified.
-    emitters : sequence
-        Water sources, each ``"x,y,z,dx,dy,dz,r,rate[,speed]"``, a sequence of
-        those 8 or 9 numbers, or a :class:`~pverosion.kernels.particle_fluid.Emitter`.
-    iterations : int, default: 100
-        Iterations (one fluid step and one erosion step each).
-    model : {"curvature", "sediment"}, default: "curvature"
-        Shifted-curvature displacement near colliding particles (eqs. 6–7), or
-        shear-stress erosion and deposition with volume-exact displacement
-        (thesis eqs. 8.2–8.7).
-    drains : sequence, optional
-        ``"plane:nx,ny,nz,d"`` / ``"box:xmin,ymin,zmin,xmax,ymax,zmax"`` strings
-        or :class:`~pverosion.kernels.particle_fluid.Drain` objects; particles
-        leaving the domain are drained anyway.
-    radius : float, optional
-        Particle radius; default half the mesh's average edge length.
-    erodibility : array of shape (V,), callable, str or None
-        Erosion multiplier: per-vertex values, a function of points, or the
-        name of a point array of ``mesh``.
-    seed : int, default: 0
-        Same seed, same result (bit for bit).
-    **options
-        Other options of :class:`pverosion.filters.HydraulicErosion`
-        (``gravity``, ``time_step``, ``substeps``, ``power``, ``step_divisor``,
-        ``influence``, ``erosion_rate``, ``critical_stress``, ...).
+    {options}
 
     Returns
     -------
@@ -537,20 +580,16 @@ def hydraulic_erosion(
         statistics ``hydraulic_*`` in field data) and ``particles`` (positions,
         ``velocity``, ``speed``, ``sediment``).
     """
-    if isinstance(emitters, (str, Emitter)):
-        emitters = [emitters]
-    if isinstance(drains, (str, Drain)):
-        drains = [drains]
-    options["emitter"] = ";".join(_spec(e, "emitter") for e in emitters)
-    options["drain"] = ";".join(_spec(d, "drain") for d in drains)
-    if radius is not None:
-        options["radius"] = radius
-    for name in ("gravity",):
-        if name in options and not isinstance(options[name], str):
-            options[name] = ",".join(repr(float(v)) for v in np.asarray(options[name], dtype=float).reshape(3))
-    if "domain" in options and not isinstance(options["domain"], str):
-        options["domain"] = ",".join(repr(float(v)) for v in np.asarray(options["domain"], dtype=float).ravel())
-    options.update(iterations=iterations, model=model, seed=seed)
     if isinstance(erodibility, str):
-        return apply_filter(HydraulicErosion, mesh, erodibility_array=erodibility, **options)
-    return apply_filter(HydraulicErosion, mesh, erodibility=erodibility, **options)
+        erodibility_array, erodibility = erodibility, None
+    if radius is None:  # the default before radius=0.0 meant "automatic" too
+        radius = 0.0
+    return apply_filter(
+        HydraulicErosion, mesh, iterations=iterations, model=model, emitter=emitter, drain=drain, domain=domain,
+        walls=walls, radius=radius, gravity=gravity, time_step=time_step, substeps=substeps,
+        solver_iterations=solver_iterations, viscosity=viscosity, friction=friction, max_particles=max_particles,
+        power=power, step_divisor=step_divisor, normalization=normalization, influence=influence,
+        erosion_rate=erosion_rate, critical_stress=critical_stress, stress_constant=stress_constant,
+        stress_power=stress_power, rate_power=rate_power, erodibility_array=erodibility_array,
+        min_edge_ratio=min_edge_ratio, check_every=check_every, repair=repair, orientation=orientation, seed=seed,
+        close_holes=close_holes, erodibility=erodibility, progress_bar=progress_bar)

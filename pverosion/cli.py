@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from pverosion import paraview_setup
-from pverosion._stages import STAGE_INDEX, load_stage
+from pverosion._stages import DEPRECATED_COMMANDS, STAGE_INDEX, load_stage, resolve_command
 
 if TYPE_CHECKING:
     from pverosion.filters.base import ErosionFilter
@@ -294,6 +294,12 @@ def main(argv: list[str] | None = None) -> int:
     """
     argv = sys.argv[1:] if argv is None else list(argv)
     command = next((arg for arg in argv if not arg.startswith("-")), None)
+    if command in DEPRECATED_COMMANDS:  # the old name runs the renamed stage, with a warning
+        with warnings.catch_warnings():
+            warnings.simplefilter("always", DeprecationWarning)
+            warnings.showwarning = lambda message, *_a, **_k: print(f"pverosion: warning: {message}", file=sys.stderr)
+            new = resolve_command(command)
+        argv[argv.index(command)] = command = new
     parser = build_parser(stages={command})  # only the chosen stage's filter module is imported
     args = parser.parse_args(argv)
     from pverosion.filters.base import deferred_interrupt  # after --help, which needs no VTK

@@ -25,7 +25,7 @@ SMALL_OPTIONS: dict[str, dict] = {
     "sample-materials": {},
     "voxel": {"iterations": 2},
     "shard-graph": {"cells": 20},
-    "shards": {"cells": 20, "iterations": 2, "paths_per_step": 10},
+    "freeze-thaw": {"cells": 20, "iterations": 2, "paths_per_step": 10},
 }
 """Options (by command name) that keep each filter's run small; the rest stay at their defaults."""
 

@@ -19,7 +19,7 @@ from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 
 from pverosion._runtime import stage_run
-from pverosion._stages import STAGE_INDEX
+from pverosion._stages import STAGE_INDEX, resolve_command
 
 __all__ = ["WARMUPS", "warm_up"]
 
@@ -121,7 +121,7 @@ WARMUPS: dict[str, Callable[[], None]] = {
     "sample-materials": _sample_materials,
     "voxel": _voxel,
     "shard-graph": _shard_graph,
-    "shards": _shards,
+    "freeze-thaw": _shards,
     "repair": _repair,
     "boolean": _boolean,
 }
@@ -158,7 +158,7 @@ def warm_up(stages: Sequence[str] | None = None, *, processes: int | None = None
     ValueError
         If a stage is unknown or ``processes`` is below 1.
     """
-    stages = list(WARMUPS) if stages is None else list(dict.fromkeys(stages))
+    stages = list(WARMUPS) if stages is None else list(dict.fromkeys(resolve_command(s, stacklevel=2) for s in stages))
     unknown = [s for s in stages if s not in WARMUPS]
     if unknown:
         raise ValueError(f"unknown stage(s) {', '.join(map(repr, unknown))}; "

@@ -18,7 +18,7 @@ cartesian product of jobs::
 
     [[stages]]
     stage = "curvature"
-    name = "final_curvature"       # optional label; default: the stage name
+    name = "final_curvature"       # optional label; default: the stage name, "-" read as "_"
 
     [sweep]
     "input.seed" = [1, 2, 3, 4]    # <input | stage label>.<option>, or seed
@@ -51,6 +51,7 @@ if sys.version_info >= (3, 11):
 else:  # Python 3.10: the same parser, from PyPI
     import tomli as tomllib
 
+from pverosion._stages import resolve_command
 from pverosion.examples import EXAMPLES
 from pverosion.filters import ALL_FILTERS
 from pverosion.filters.base import ErosionFilter, Param
@@ -227,7 +228,10 @@ def _expand(doc: dict, *, text: str, source: Path | None, base: Path) -> Scenari
             raise ScenarioError(f"[[stages]] #{k + 1}: must be a table")
         if "stage" not in stage:
             raise ScenarioError(f"[[stages]] #{k + 1}: missing key 'stage' (one of {', '.join(STAGES)})")
-        label = stage.get("name", stage["stage"])
+        command = stage["stage"]
+        label = stage.get("name", command.replace("-", "_") if isinstance(command, str) else command)
+        if isinstance(command, str):  # an old stage name keeps its label, so its sweep keys still work
+            stages[k] = {**stage, "stage": resolve_command(command, stacklevel=5)}
         if not isinstance(label, str) or not label.isidentifier():
             raise ScenarioError(f"[[stages]] #{k + 1}: name must be an identifier; got {label!r}")
         if label in labels or label in ("input", "seed", "outputs"):

@@ -72,6 +72,24 @@ class Param:
         ``parse(text)`` of a string option, raising ``ValueError`` for a bad
         non-empty value; called when the option is set, so every front end
         refuses it before running.
+    convert : callable, optional
+        Makes a string option *structured* (emitters, drains): ``convert(value)``
+        turns its text or a Python value (the kernel's dataclass, a sequence of
+        them) into the checked structured value, raising ``ValueError`` or
+        ``TypeError``. Python front ends pass such values through unchanged;
+        read them with :meth:`ErosionFilter.structured_option`.
+    format : callable, optional
+        ``format(structured value) -> text``, the inverse of ``convert`` for
+        text front ends (batch records, ``--help``).
+    python_type : str
+        Type of the option in the Python front ends' docstrings (default:
+        derived from the default, ``choices`` and ``numbers``).
+    units : str
+        Units of a quantity (``"m/s"``, ``"Pa"``; ``"model units"`` for
+        lengths in the mesh's units); empty for a pure number.
+    advanced : bool
+        Solver tuning: ParaView shows it only in the advanced panel, and the
+        Python docstrings list it after the main options.
     """
 
     name: str
@@ -83,6 +101,17 @@ class Param:
     path: str | None = None
     numbers: int | None = None
     parse: Callable[[str], Any] | None = None
+    convert: Callable[[Any], Any] | None = None
+    format: Callable[[Any], str] | None = None
+    python_type: str = ""
+    units: str = ""
+    advanced: bool = False
+
+    def __post_init__(self) -> None:
+        if (self.convert is None) != (self.format is None):
+            raise ValueError(f"option {self.name}: a structured option needs both convert and format")
+        if self.numbers is not None and self.convert is not None:
+            raise ValueError(f"option {self.name}: an option is a vector (numbers) or structured (convert), not both")
 
     @property
     def kind(self) -> type:
@@ -94,8 +123,42 @@ class Param:
         """CamelCase name used by the VTK methods and ParaView properties."""
         return "".join(part.capitalize() for part in self.name.split("_"))
 
+    @property
+    def python_default(self) -> Any:
+        """Default in the Python front ends: a tuple of floats for a vector, None for an unset vector or structure."""
+        if self.numbers is not None or self.convert is not None:
+            if not self.default:
+                return None
+            if self.numbers is not None:
+                return tuple(parse_numbers(self.default, self.name, count=self.numbers or None))
+            return self.convert(self.default)
+        return self.default
+
+    def text(self, value: Any) -> str:
+        """The text form of a valid value of this option (for the command line and batch records)."""
+        value = self.validate(value)
+        if self.convert is not None and not isinstance(value, str):
+            return self.format(value)
+        return str(value)
+
     def validate(self, value: Any) -> Any:
-        """Return ``value`` converted to the option's type, or raise ``ValueError``/``TypeError``."""
+        """Return ``value`` converted to the option's type, or raise ``ValueError``/``TypeError``.
+
+        A vector option (``numbers``) also takes a sequence of numbers, kept
+        as its text ``"x,y,z"``; a vector or structured option takes None
+        for unset. A structured option (``convert``) keeps a non-text value
+        as ``convert(value)``, so Python objects are never turned into text.
+        """
+        if value is None and (self.numbers is not None or self.convert is not None):
+            return ""
+        if self.numbers is not None and not isinstance(value, str):
+            return self._vector_text(value)
+        if self.convert is not None and not isinstance(value, str):
+            try:
+                return self.convert(value)
+            except (ValueError, TypeError) as exc:
+                message = str(exc)
+                raise type(exc)(message if message.startswith(self.name) else f"{self.name}: {message}") from None
         kind = self.kind
         if kind is bool:
             if not isinstance(value, (bool, np.bool_, int, np.integer)) or value not in (0, 1):
@@ -127,6 +190,23 @@ class Param:
                 message = str(exc)
                 raise ValueError(message if message.startswith(self.name) else f"{self.name}: {message}") from None
         return value
+
+
+    def _vector_text(self, value: Any) -> str:
+        """The canonical text ``"x,y,z"`` of a sequence of numbers given for a vector option."""
+        try:
+            values = np.asarray(value, dtype=np.float64).ravel()
+        except (TypeError, ValueError):
+            raise TypeError(f"{self.name} must be numbers or their text 'x,y,z'; got {value!r}") from None
+        if np.asarray(value).ndim == 0:
+            raise TypeError(f"{self.name} must be a sequence of numbers; got {value!r}")
+        if self.numbers and values.size != self.numbers:
+            raise ValueError(f"{self.name} needs {self.numbers} numbers; got {values.size}")
+        if values.size == 0:
+            raise ValueError(f"{self.name} needs at least one number")
+        if not np.isfinite(values).all():
+            raise ValueError(f"{self.name} must be finite numbers; got {value!r}")
+        return ",".join(repr(float(v)) for v in values)
 
 
 def parse_numbers(text: str, name: str, *, count: int | None = None) -> list[float]:
@@ -216,6 +296,12 @@ class ErosionFilter(VTKPythonAlgorithmBase):
         """Current value of option ``name``."""
         self.param(name)
         return self._values[name]
+
+    def structured_option(self, name: str) -> Any:
+        """Value of a structured option (``Param.convert``), whether it was set as text or as Python objects."""
+        p = self.param(name)
+        value = self._values[name]
+        return p.convert(value) if p.convert is not None and isinstance(value, str) else value
 
     @property
     def options(self) -> dict[str, Any]:

@@ -30,7 +30,9 @@ from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters
 from pverosion.kernels.validation import InvalidMeshError
 from pverosion.limits import check_memory, check_work
 
-__all__ = ["HydraulicErosion", "parse_drains", "parse_emitters", "particles_polydata"]
+__all__ = ["HydraulicErosion", "format_drains", "format_emitters", "parse_drains", "parse_emitters",
+           "particles_polydata",
+           "to_drains", "to_emitters"]
 
 _SHEAR = ("erosion_rate", "critical_stress", "stress_constant", "stress_power", "rate_power")
 
@@ -43,6 +45,69 @@ def parse_emitters(text: str) -> list[Emitter]:
 def parse_drains(text: str) -> list[Drain]:
     """Drains from ``"plane:nx,ny,nz,d"`` / ``"box:xmin,ymin,zmin,xmax,ymax,zmax"`` separated by ``;``."""
     return [Drain.parse(part) for part in text.split(";") if part.strip()]
+
+
+def _numbers_text(values) -> str:
+    return ",".join(repr(float(v)) for v in values)
+
+
+def to_emitters(value) -> tuple[Emitter, ...]:
+    """Emitters from their text, an :class:`Emitter`, 8 or 9 numbers, or a sequence of those.
+
+    Raises
+    ------
+    ValueError, TypeError
+        For a malformed specification (the message says which).
+    """
+    if isinstance(value, str):
+        return tuple(parse_emitters(value))
+    if isinstance(value, Emitter):
+        return (value,)
+    items = list(value)
+    if items and all(isinstance(v, (int, float, np.integer, np.floating)) for v in items):
+        items = [items]  # one emitter as its numbers
+    emitters = []
+    for item in items:
+        if isinstance(item, (str, Emitter)):
+            emitters.extend(to_emitters(item))
+            continue
+        numbers = np.asarray(item, dtype=np.float64).ravel()
+        if numbers.size not in (8, 9):
+            raise ValueError(f"an emitter is x,y,z,dx,dy,dz,radius,rate[,speed] (8 or 9 numbers); got {item!r}")
+        emitters.append(Emitter(tuple(numbers[0:3]), tuple(numbers[3:6]), float(numbers[6]), float(numbers[7]),
+                                float(numbers[8]) if numbers.size == 9 else None))
+    return tuple(emitters)
+
+
+def format_emitters(emitters) -> str:
+    """The text ``"x,y,z,dx,dy,dz,r,rate[,speed];..."`` of emitters (read back by :func:`parse_emitters`)."""
+    return ";".join(_numbers_text([*e.position, *e.direction, e.radius, e.rate, *([] if e.speed is None else [e.speed])])
+                    for e in emitters)
+
+
+def to_drains(value) -> tuple[Drain, ...]:
+    """Drains from their text, a :class:`Drain`, or a sequence of those.
+
+    Raises
+    ------
+    ValueError, TypeError
+        For a malformed specification.
+    """
+    if isinstance(value, str):
+        return tuple(parse_drains(value))
+    if isinstance(value, Drain):
+        return (value,)
+    drains = []
+    for item in value:
+        if not isinstance(item, (str, Drain)):
+            raise TypeError(f"a drain is a Drain or its text 'plane:nx,ny,nz,d' / 'box:...'; got {item!r}")
+        drains.extend(to_drains(item))
+    return tuple(drains)
+
+
+def format_drains(drains) -> str:
+    """The text ``"plane:nx,ny,nz,d;box:..."`` of drains (read back by :func:`parse_drains`)."""
+    return ";".join(f"{d.kind}:{_numbers_text(d.values)}" for d in drains)
 
 
 BYTES_PER_PARTICLE = 2048
@@ -131,50 +196,54 @@ class HydraulicErosion(MeshSolverFilter):
         Param("model", "curvature", "Erosion model: curvature (Skorkovska 2019 eqs. 6-7) or sediment (shear stress, "
               "thesis ch. 8).", choices=MODELS),
         Param("emitter", "", "Water sources x,y,z,dx,dy,dz,r,rate[,speed] (disc centre, direction, disc radius, "
-              "particles per second, speed), several separated by ';'.", parse=parse_emitters),
+              "particles per second, speed), several separated by ';'.", parse=parse_emitters, convert=to_emitters,
+              format=format_emitters, python_type="Emitter, 8 or 9 numbers, str, or a sequence of them"),
         Param("drain", "", "Water sinks plane:nx,ny,nz,d (removes n.x > d) or box:xmin,ymin,zmin,xmax,ymax,zmax, "
-              "separated by ';'. Particles leaving the domain are always drained.", parse=parse_drains),
+              "separated by ';'. Particles leaving the domain are always drained.", parse=parse_drains, convert=to_drains,
+              format=format_drains, python_type="Drain, str, or a sequence of them"),
         Param("domain", "", "Box of the fluid xmin,ymin,zmin,xmax,ymax,zmax (empty: the mesh and emitters, padded).",
               numbers=6),
         Param("walls", False, "Keep particles inside the domain box (a tank) instead of draining those leaving it."),
-        Param("radius", 0.0, "Particle radius (0: half the mesh's average edge length).", minimum=0.0),
+        Param("radius", 0.0, "Particle radius (0: half the mesh's average edge length).", minimum=0.0, advanced=True),
         Param("gravity", "0,0,-9.81", "Gravity vector gx,gy,gz in model units per second squared.", numbers=3),
         Param("time_step", 0.0, "Seconds per iteration (0: automatic from the particle radius and gravity).",
-              minimum=0.0),
-        Param("substeps", 2, "Fluid substeps per iteration.", minimum=1),
-        Param("solver_iterations", 3, "Density-constraint iterations per substep.", minimum=1),
-        Param("viscosity", 0.01, "XSPH viscosity.", minimum=0.0, maximum=1.0),
+              minimum=0.0, advanced=True),
+        Param("substeps", 2, "Fluid substeps per iteration.", minimum=1, advanced=True),
+        Param("solver_iterations", 3, "Density-constraint iterations per substep.", minimum=1, advanced=True),
+        Param("viscosity", 0.01, "XSPH viscosity.", minimum=0.0, maximum=1.0, advanced=True),
         Param("friction", 0.0, "Fraction of the tangential motion removed at mesh contacts.", minimum=0.0,
-              maximum=1.0),
-        Param("max_particles", 250_000, "Emitters pause at this many particles.", minimum=1),
+              maximum=1.0, advanced=True),
+        Param("max_particles", 250_000, "Emitters pause at this many particles.", minimum=1, advanced=True),
         Param("power", 1.0, "Power n of the shifted curvature (curvature model).", minimum=1.0),
         Param("step_divisor", 10.0, "Divisor x >= 1: a vertex moves at most e_avg / x per iteration (below 1 a step "
               "could turn the surface inside out).", minimum=1.0),
         Param("normalization", "scale_free", "Curvature range H_min..H_max over the interior vertices (scale_free: "
               "open scans) or over all vertices (paper); curvature model.", choices=SOLVER_NORMALIZATIONS),
         Param("influence", 1.0, "Region of influence d_influence of a particle (from its surface), in average "
-              "edge lengths (curvature model).", minimum=1e-6),
+              "edge lengths (curvature model).", minimum=1e-6, advanced=True),
         Param("erosion_rate", 1e-3, "k of the erosion rate k (tau - tau_c)^a (sediment model).", minimum=0.0),
         Param("critical_stress", 5.0, "Critical shear stress tau_c (sediment model).", minimum=0.0),
-        Param("stress_constant", 1.0, "K of the shear stress K theta^m (sediment model).", minimum=0.0),
-        Param("stress_power", 1.0, "m of the shear stress K theta^m (sediment model).", minimum=1e-6),
-        Param("rate_power", 1.0, "a of the erosion rate k (tau - tau_c)^a (sediment model).", minimum=1e-6),
+        Param("stress_constant", 1.0, "K of the shear stress K theta^m (sediment model).", minimum=0.0, advanced=True),
+        Param("stress_power", 1.0, "m of the shear stress K theta^m (sediment model).", minimum=1e-6, advanced=True),
+        Param("rate_power", 1.0, "a of the erosion rate k (tau - tau_c)^a (sediment model).", minimum=1e-6,
+              advanced=True),
         Param("erodibility_array", "", "Input point array used as per-vertex erodibility (empty: uniform)."),
         Param("min_edge_ratio", 0.1, "Collapse edges shorter than this times e_avg among moved vertices (0: off).",
-              minimum=0.0, maximum=0.99),
-        Param("check_every", 10, "Self-intersection guard period in iterations (0: off).", minimum=0),
+              minimum=0.0, maximum=0.99, advanced=True),
+        Param("check_every", 10, "Self-intersection guard period in iterations (0: off).", minimum=0, advanced=True),
         Param("repair", "retry", "When the surface meets itself: roll back and shorten the steps there (retry), "
-              "cut it along the intersection curves and go on (topology), or nothing (off).", choices=REPAIR_MODES),
+              "cut it along the intersection curves and go on (topology), or nothing (off).", choices=REPAIR_MODES,
+                    advanced=True),
         Param("orientation", "outward", "Face orientation to use (outward: the fluid is outside the mesh).",
-              choices=ORIENTATIONS),
-        Param("seed", 0, "Seed of the fluid's random numbers.", minimum=0),
+              choices=ORIENTATIONS, advanced=True),
+        Param("seed", 0, "Seed of the fluid's random numbers.", minimum=0, advanced=True),
         Param("close_holes", False, "Close the holes of an open input mesh first (the fluid needs a closed mesh)."),
     )
 
     def _new_solver(self, inp) -> HydraulicSolver:
         points, faces, topology = self._surface(inp)
-        emitters = parse_emitters(self.get_option("emitter"))
-        drains = parse_drains(self.get_option("drain"))
+        emitters = list(self.structured_option("emitter"))
+        drains = list(self.structured_option("drain"))
         if not emitters:
             raise ValueError("hydraulic erosion needs water: give at least one emitter x,y,z,dx,dy,dz,r,rate")
         holes = topology.n_boundary_edges

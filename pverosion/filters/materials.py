@@ -67,9 +67,10 @@ class MaterialsFromVolume(ErosionFilter):
         Param("method", "complete", "complete (C-BSP, clip straddling faces), simplified (S-BSP, face centre) or "
               "fitted (planes chosen to fit the voxels' materials: exact at voxel centres, far smaller).",
               choices=BSP_METHODS),
-        Param("seed", 0, "Seed of the face insertion order.", minimum=0),
+        Param("seed", 0, "Seed of the face insertion order.", minimum=0, advanced=True),
         Param("hardness", "", "Hardness per material, comma separated (default 1, 2, ..., m+1).", numbers=0),
-        Param("gradual_scale", 0.0, "Softer away from the boundaries over this distance (0: off).", minimum=0.0),
+        Param("gradual_scale", 0.0, "Softer away from the boundaries over this distance (0: off).", minimum=0.0,
+              advanced=True),
         Param("tree_file", "", "Also save the tree to this JSON file.", path="output"),
     )
 

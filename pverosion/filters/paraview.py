@@ -5,7 +5,7 @@ This module never imports ParaView: the plugin file
 of ``paraview.util.vtkAlgorithm``. Each option becomes one property whose
 command is a thin method of the generated subclass; string choices become an
 enumeration, ``x,y,z`` options a 3-element vector, solver tuning options go to
-the advanced panel; each input port (``INPUT_PORTS``) becomes one input
+the advanced panel (``Param.advanced``); each input port (``INPUT_PORTS``) becomes one input
 property; a time-stepped filter exposes its steps as ``TimestepValues`` so the
 TimeKeeper and the animation toolbar list them.
 
@@ -29,37 +29,27 @@ from vtkmodules.vtkCommonCore import vtkOutputWindow
 from pverosion.filters.base import ErosionFilter, Param, TimeSteppedFilter
 from pverosion.plotting import CURVATURE_CMAP, CURVATURE_COLOURS
 
-__all__ = ["ADVANCED", "MENU_CATEGORY", "curvature_preset", "curvature_settings", "make_proxy", "report_error",
-           "vector_size"]
+__all__ = ["ADVANCED", "MENU_CATEGORY", "curvature_preset", "curvature_settings", "make_proxy",  # noqa: F822
+           "report_error", "vector_size"]  # ADVANCED is built by the module's __getattr__
 
 MENU_CATEGORY = "pverosion"
 
-ADVANCED: dict[str, frozenset[str]] = {
-    "weather": frozenset({"min_edge_ratio", "check_every", "repair", "orientation"}),
-    "hydraulic": frozenset({"substeps", "solver_iterations", "viscosity", "friction", "max_particles", "time_step",
-                            "radius", "min_edge_ratio", "check_every", "repair", "orientation", "seed",
-                            "stress_constant", "stress_power", "rate_power", "influence"}),
-    "materials": frozenset({"seed", "gradual_scale"}),
-    "voxel": frozenset({"tolerance", "viscosity", "advection", "extraction", "time_scale"}),
-    "shard-graph": frozenset({"jitter", "radius_gradient", "tilt", "seed"}),
-    "shards": frozenset({"jitter", "radius_gradient", "tilt", "seed", "k_solid", "k_air", "k_res", "k_dmg",
-                         "k_break", "break_probability", "complete_absorption", "spread"}),
-    "repair": frozenset({"tolerance"}),
-    "boolean": frozenset({"tolerance"}),
-}
-"""Options shown only in ParaView's advanced panel (gear button), by command name."""
+
+
+
+def __getattr__(name: str):
+    if name == "ADVANCED":  # built on first use: it imports every filter module
+        from pverosion.filters import ALL_FILTERS
+
+        value = {cls.command_name(): frozenset(p.name for p in cls.PARAMS if p.advanced) for cls in ALL_FILTERS}
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def vector_size(p: Param) -> int:
-    """3 for a string option holding an ``x,y,z`` vector (its default is three numbers), else 1."""
-    if p.kind is not str or p.choices is not None:
-        return 1
-    parts = p.default.split(",")
-    try:
-        [float(x) for x in parts]
-    except ValueError:
-        return 1
-    return 3 if len(parts) == 3 else 1
+    """3 for an ``x,y,z`` vector option (``Param.numbers == 3``: a 3-element widget), else 1."""
+    return 3 if p.numbers == 3 else 1
 
 
 def _property_xml(p: Param, command: str, advanced: bool) -> str:
@@ -170,12 +160,11 @@ def make_proxy(filter_cls: type[ErosionFilter], decorators: SimpleNamespace, mod
     name = f"PVErosion{filter_cls.__name__}"
     namespace = {"__module__": module, "__qualname__": name, "__doc__": filter_cls.__doc__,
                  "__init__": _init(filter_cls), "RequestData": _request_data(filter_cls)}
-    advanced = ADVANCED.get(filter_cls.command_name(), frozenset())
     for p in filter_cls.PARAMS:
         method = f"SetPV{p.camel}"
         func = _setter(p)
         func.__name__ = method
-        namespace[method] = decorators.smproperty.xml(_property_xml(p, method, p.name in advanced))(func)
+        namespace[method] = decorators.smproperty.xml(_property_xml(p, method, p.advanced))(func)
     if issubclass(filter_cls, TimeSteppedFilter):
         getter = decorators.smproperty.doublevector(name="TimestepValues", information_only="1",
                                                     si_class="vtkSITimeStepsProperty")

@@ -48,7 +48,7 @@ REPAIR_ORIENTATIONS = ("keep", "outward")
 _MESH_PARAMS = (
     Param("tolerance", DEFAULT_TOLERANCE, "Pre-pass: faces with an edge shorter than this, or a corner this close to "
           "the opposite edge (relative to the bounding-box diagonal), are nearly degenerate and removed first by "
-          "edge collapse and flip; 0 skips it.", minimum=0.0),
+          "edge collapse and flip; 0 skips it.", minimum=0.0, advanced=True),
     Param("improve", False, "Improve the mesh afterwards: collapse the needles and flip or split the caps the "
           "cutting made, keeping the intersection curves."),
 )

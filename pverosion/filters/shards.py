@@ -67,12 +67,13 @@ _GENERATION_PARAMS = (
     Param("pattern", "uniform", "Seed pattern: uniform random, jittered cubic grid, jittered hexagonal columns "
           "(columnar basalt), slabs (strata), Poisson disc, or a subset of the mesh vertices.", choices=PATTERNS),
     Param("jitter", 0.2, "Jitter of the grid, hex and slab patterns, as a fraction of the spacing.", minimum=0.0,
-          maximum=0.49),
+          maximum=0.49, advanced=True),
     Param("layers", "", "Slab thicknesses from the bottom up, as t1,t2,... (cycled; default: the spacing); hex: "
           "the height of the column pieces (default: whole columns).", numbers=0),
-    Param("tilt", 0.0, "Tilt of the slab pattern about x, in degrees.", minimum=-90.0, maximum=90.0),
-    Param("radius_gradient", "0,0,0", "Poisson disc: change of the radius per unit length, as x,y,z.", numbers=3),
-    Param("seed", 0, "Random seed of the seed pattern and of the water paths.", minimum=0),
+    Param("tilt", 0.0, "Tilt of the slab pattern about x, in degrees.", minimum=-90.0, maximum=90.0, advanced=True),
+    Param("radius_gradient", "0,0,0", "Poisson disc: change of the radius per unit length, as x,y,z.", numbers=3,
+          advanced=True),
+    Param("seed", 0, "Random seed of the seed pattern and of the water paths.", minimum=0, advanced=True),
 )
 
 
@@ -284,7 +285,7 @@ class FreezeThaw(_ShardSource, TimeSteppedFilter):
     """
 
     LABEL = "Freeze-thaw weathering"
-    COMMAND = "shards"
+    COMMAND = "freeze-thaw"
     OUTPUT_TYPE = "vtkMultiBlockDataSet"
     PARAMS = (
         Param("iterations", 10, "Time steps (time steps 0..iterations).", minimum=0),
@@ -295,19 +296,24 @@ class FreezeThaw(_ShardSource, TimeSteppedFilter):
         Param("core_plane", "", "Also make core the cells whose seed x has n . x >= d, as nx,ny,nz,d.", numbers=4),
         Param("core_window", "", "Sphere x,y,z,r whose cells are not core (an opening for the erosion).", numbers=4),
         Param("water_direction", "0,0,-1", "Mean direction the water travels in, as x,y,z.", numbers=3),
-        Param("spread", 0.0, "Half-angle (degrees) of the cone of water directions.", minimum=0.0, maximum=180.0),
+        Param("spread", 0.0, "Half-angle (degrees) of the cone of water directions.", minimum=0.0, maximum=180.0,
+              advanced=True),
         Param("gravity", "0,0,-1", "Direction water flows in between links, as x,y,z.", numbers=3),
         Param("resistance", 0.0, "Resistance rho of the rock to the flow, in [0, 1] (constant; Python front ends "
               "also take a function or a 3-D image).", minimum=0.0, maximum=1.0),
         Param("water", 1.0, "Water per path, w_in.", minimum=1e-12),
-        Param("k_solid", 0.1, "Absorption per area on unbroken links, in units of 1/(mean link area).", minimum=0.0),
-        Param("k_air", 0.05, "Absorption per area on broken links, in units of 1/(mean link area).", minimum=0.0),
-        Param("k_res", 0.25, "Absorption per unit of flow resistance.", minimum=0.0),
-        Param("k_dmg", 0.5, "Damage per absorbed water per area, in units of the mean link area.", minimum=0.0),
-        Param("k_break", 0.4, "Life below which a link may break at random.", minimum=0.0, maximum=1.0),
-        Param("break_probability", 0.9, "Probability of that break as the life reaches 0.", minimum=0.0, maximum=1.0),
+        Param("k_solid", 0.1, "Absorption per area on unbroken links, in units of 1/(mean link area).", minimum=0.0,
+              advanced=True),
+        Param("k_air", 0.05, "Absorption per area on broken links, in units of 1/(mean link area).", minimum=0.0,
+              advanced=True),
+        Param("k_res", 0.25, "Absorption per unit of flow resistance.", minimum=0.0, advanced=True),
+        Param("k_dmg", 0.5, "Damage per absorbed water per area, in units of the mean link area.", minimum=0.0,
+              advanced=True),
+        Param("k_break", 0.4, "Life below which a link may break at random.", minimum=0.0, maximum=1.0, advanced=True),
+        Param("break_probability", 0.9, "Probability of that break as the life reaches 0.", minimum=0.0, maximum=1.0,
+              advanced=True),
         Param("complete_absorption", 1.0, "Scale of the chance 1 - w/w_in that a link absorbs all water left.",
-              minimum=0.0, maximum=1.0),
+              minimum=0.0, maximum=1.0, advanced=True),
         Param("shards", True, "Output every remaining cell's own surface (the shards block)."),
         Param("record_paths", True, "Output the water paths of the last time step (the paths block)."),
     )

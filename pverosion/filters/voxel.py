@@ -362,13 +362,14 @@ class VoxelErosion(TimeSteppedFilter):
         Param("capacity", 0.7, "k in C_hat = min(k |u|, c_max) (cohesionless).", minimum=0.0),
         Param("saturation", 0.5, "c_max, the most dissolved material a water voxel holds.", minimum=1e-9,
               maximum=1.0),
-        Param("time_scale", 1.0, "T, adjustment time of the cohesionless load (s).", minimum=1e-9),
-        Param("viscosity", 1e-6, "Kinematic viscosity of the water (m^2/s).", minimum=0.0),
+        Param("time_scale", 1.0, "T, adjustment time of the cohesionless load (s).", minimum=1e-9, advanced=True),
+        Param("viscosity", 1e-6, "Kinematic viscosity of the water (m^2/s).", minimum=0.0, advanced=True),
         Param("advection", "semi-lagrangian", "Velocity advection: semi-lagrangian (fastest) or maccormack "
-              "(keeps the flow's inertia, about twice the advection time).", choices=ADVECTION_SCHEMES),
+              "(keeps the flow's inertia, about twice the advection time).", choices=ADVECTION_SCHEMES, advanced=True),
         Param("source_velocity", "0,0,0", "Velocity of the water at source voxels (m/s), as x,y,z.", numbers=3),
-        Param("tolerance", 1e-6, "Projection tolerance on max |div u| dt / h.", minimum=1e-14),
-        Param("extraction", "flying_edges", "Isosurface extraction of the material.", choices=EXTRACTORS),
+        Param("tolerance", 1e-6, "Projection tolerance on max |div u| dt / h.", minimum=1e-14, advanced=True),
+        Param("extraction", "flying_edges", "Isosurface extraction of the material.", choices=EXTRACTORS,
+              advanced=True),
     )
 
     def __init__(self, **options):

@@ -160,13 +160,14 @@ class Weathering(MeshSolverFilter):
         Param("direction", "laplacian", "Displacement direction: unit uniform Laplacian or inward normal.",
               choices=DIRECTIONS),
         Param("min_edge_ratio", 0.1, "Collapse edges shorter than this times e_avg after every step (0: off).",
-              minimum=0.0, maximum=0.99),
-        Param("check_every", 10, "Self-intersection guard period in steps (0: off).", minimum=0),
+              minimum=0.0, maximum=0.99, advanced=True),
+        Param("check_every", 10, "Self-intersection guard period in steps (0: off).", minimum=0, advanced=True),
         Param("repair", "retry", "When the surface meets itself: roll back and shorten the steps there (retry), "
-              "cut it along the intersection curves and go on (topology), or nothing (off).", choices=REPAIR_MODES),
+              "cut it along the intersection curves and go on (topology), or nothing (off).", choices=REPAIR_MODES,
+                    advanced=True),
         Param("erodibility_array", "", "Input point array used as per-vertex erodibility (empty: uniform)."),
         Param("orientation", "outward", "Face orientation to use (outward: convex regions erode).",
-              choices=ORIENTATIONS),
+              choices=ORIENTATIONS, advanced=True),
     )
 
     def _new_solver(self, inp) -> WeatheringSolver:

@@ -26,7 +26,7 @@ FILTERS = {  # paraview.simple function of each filter, from its menu label
     "sample-materials": "pverosionMaterialfieldsampling",
     "voxel": "pverosionVoxelhydraulicerosion",
     "shard-graph": "pverosionVoronoishards",
-    "shards": "pverosionFreezethawweathering",
+    "freeze-thaw": "pverosionFreezethawweathering",
     "repair": "pverosionRepairselfintersections",
     "boolean": "pverosionBooleanoperation",
 }
@@ -133,7 +133,7 @@ def main():
     cell_ids = point_array(block(fetch(shards), "shards"), "cell_id", "CellData")
     check(len(np.unique(cell_ids)) == 30, f"30 shards; got {len(np.unique(cell_ids))}")
 
-    freeze = make["shards"](Input=sphere(1.0), Cells=30)
+    freeze = make["freeze-thaw"](Input=sphere(1.0), Cells=30)
     check(list(freeze.TimestepValues) == [float(t) for t in range(11)], "freeze-thaw publishes steps 0..10")
     freeze.UpdatePipeline(10.0)
     check(block(fetch(freeze), "surface").GetNumberOfPoints() > 0, "freeze-thaw leaves a surface")
@@ -150,7 +150,7 @@ def main():
     print("every filter ran with its defaults", flush=True)
 
     # vector options are 3-element fields that reach the filter as x,y,z; tuning options are in the advanced panel
-    panel = make["shards"](Input=sphere(1.0), Cells=30)
+    panel = make["freeze-thaw"](Input=sphere(1.0), Cells=30)
     direction = panel.SMProxy.GetProperty("WaterDirection")
     check(direction.GetNumberOfElements() == 3 and list(panel.WaterDirection) == [0.0, 0.0, -1.0],
           f"WaterDirection widget: {direction.GetNumberOfElements()} elements, {list(panel.WaterDirection)}")
