@@ -1,15 +1,21 @@
 """PyVista accessor ``dataset.erosion.<stage>(...)``.
 
 Registered through the ``pyvista.accessors`` entry point, so it is available
-on every dataset as soon as pverosion is installed, without an import.
+on every dataset as soon as pverosion is installed, without an import. Each
+method is the public function of its stage (:mod:`pverosion.api`) with this
+dataset as the input: the same keyword-only options, defaults and
+``progress_bar``; the method names are the stages' names (CLI subcommands
+with ``_`` for ``-``), see :data:`pverosion._stages.STAGE_INDEX`.
 """
 
 from __future__ import annotations
 
+import warnings
+
 import pyvista as pv
 
 from pverosion import api
-from pverosion.kernels.mesh_repair import DEFAULT_TOLERANCE
+from pverosion._frontend import accessor_method
 
 
 @pv.register_dataset_accessor("erosion", pv.DataSet)
@@ -19,41 +25,18 @@ class ErosionAccessor:
     def __init__(self, dataset: pv.DataSet):
         self._dataset = dataset
 
-    def curvature(self, *, orientation: str = "outward", normalization: str = "none") -> pv.PolyData:
-        """Per-vertex curvature; see :func:`pverosion.curvature`."""
-        return api.curvature(self._dataset, orientation=orientation, normalization=normalization)
-
-    def weather(self, **options) -> pv.PolyData:
-        """Curvature-driven weathering; see :func:`pverosion.weather` for the options."""
-        return api.weather(self._dataset, **options)
-
-    def materials(self, thresholds, **options):
-        """BSP material field built from this image volume; see :func:`pverosion.materials_from_volume`."""
-        return api.materials_from_volume(self._dataset, thresholds, **options)
-
-    def voxel(self, **options) -> pv.MultiBlock:
-        """Voxel hydraulic erosion of this voxel grid; see :func:`pverosion.voxel_erosion`."""
-        return api.voxel_erosion(self._dataset, **options)
+    curvature = accessor_method(api.curvature, "Per-vertex curvature of this surface")
+    weather = accessor_method(api.weather, "Curvature-driven weathering of this surface")
+    hydraulic = accessor_method(api.hydraulic_erosion, "Hydraulic erosion of this closed mesh by a particle fluid")
+    materials = accessor_method(api.materials_from_volume, "BSP material field built from this image volume")
+    voxel = accessor_method(api.voxel_erosion, "Voxel hydraulic erosion of this voxel grid")
+    shard_graph = accessor_method(api.shard_graph, "Voronoi shards of this closed mesh")
+    freeze_thaw = accessor_method(api.freeze_thaw, "Freeze–thaw weathering of this closed mesh")
+    repair = accessor_method(api.repair, "Self-intersections of this closed mesh removed")
+    boolean = accessor_method(api.boolean, "Boolean ``operation`` of this closed mesh (A) and ``b``")
 
     def shards(self, **options) -> pv.MultiBlock:
-        """Voronoi shards of this closed mesh; see :func:`pverosion.shard_graph`."""
+        """Deprecated name of :meth:`shard_graph` (the CLI's ``shards`` was freeze-thaw); warns ``DeprecationWarning``."""
+        warnings.warn("mesh.erosion.shards() is deprecated; use mesh.erosion.shard_graph()", DeprecationWarning,
+                      stacklevel=2)
         return api.shard_graph(self._dataset, **options)
-
-    def freeze_thaw(self, **options) -> pv.MultiBlock:
-        """Freeze–thaw weathering of this closed mesh; see :func:`pverosion.freeze_thaw`."""
-        return api.freeze_thaw(self._dataset, **options)
-
-    def hydraulic(self, **options) -> pv.MultiBlock:
-        """Hydraulic erosion of this closed mesh by a particle fluid; see :func:`pverosion.hydraulic_erosion`."""
-        return api.hydraulic_erosion(self._dataset, **options)
-
-    def repair(self, *, orientation: str = "outward", tolerance: float = DEFAULT_TOLERANCE,
-               improve: bool = False) -> pv.PolyData:
-        """Self-intersections of this closed mesh removed; see :func:`pverosion.repair`."""
-        return api.repair(self._dataset, orientation=orientation, tolerance=tolerance, improve=improve)
-
-    def boolean(self, other: pv.PolyData, operation: str = "union", *, orientation: str = "outward",
-                tolerance: float = DEFAULT_TOLERANCE, improve: bool = False) -> pv.PolyData:
-        """Boolean ``operation`` of this closed mesh (A) and ``other`` (B); see :func:`pverosion.boolean`."""
-        return api.boolean(self._dataset, other, operation, orientation=orientation, tolerance=tolerance,
-                           improve=improve)

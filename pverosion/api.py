@@ -470,10 +470,12 @@ def boolean(a: pv.PolyData, b: pv.PolyData, operation: str = "union", *, orienta
 
     Parameters
     ----------
-    a, b : pyvista.PolyData
-        Closed triangle meshes. They are not modified. An input that
-        intersects itself stands for the region where its winding number is
-        at least 1, as :func:`repair` would make it.
+    a : pyvista.PolyData
+        Closed triangle mesh A. It is not modified. An input that intersects
+        itself stands for the region where its winding number is at least 1,
+        as :func:`repair` would make it.
+    b : pyvista.PolyData
+        Closed triangle mesh B, likewise.
     {options}
 
     Returns
