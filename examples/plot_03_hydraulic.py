@@ -18,7 +18,7 @@ from pverosion.hydraulic_scenes import pour_scene
 QUICK = os.environ.get("PVEROSION_QUICK") == "1"  # set by the documentation build
 scene = pour_scene()  # pour_scene(mesh=pv.read(...)) for your own model
 iterations = 40 if QUICK else scene.iterations
-out = pverosion.hydraulic_erosion(scene.mesh, emitters=scene.emitters, drains=scene.drains,
+out = pverosion.hydraulic_erosion(scene.mesh, emitter=scene.emitters, drain=scene.drains,
                                   radius=scene.radius, iterations=iterations, seed=0)
 mesh, particles = out["mesh"], out["particles"]
 print(f"{particles.n_points} particles; volume {mesh.field_data['hydraulic_volume'][0]:.4f} -> "

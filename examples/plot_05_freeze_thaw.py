@@ -19,8 +19,8 @@ from pverosion.shard_scenes import hill_cone
 QUICK = os.environ.get("PVEROSION_QUICK") == "1"  # set by the documentation build
 hill = hill_cone()
 cells, paths = (800, 30000) if QUICK else (3000, 120000)
-out = pverosion.freeze_thaw(hill, paths=paths, cells=cells, pattern="grid", water_direction=(-1, -1, -0.6),
-                            seed=0)
+out = pverosion.freeze_thaw(hill, iterations=1, paths_per_step=paths, cells=cells, pattern="grid",
+                            water_direction=(-1, -1, -0.6), seed=0)
 surface = out["surface"]
 print(f"{int(surface.field_data['shard_cells'][0])} cells, "
       f"{int(surface.field_data['shard_solid_cells'][0])} left after {paths} paths, "

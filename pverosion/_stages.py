@@ -24,19 +24,34 @@ class Stage(NamedTuple):
     """Help line (the filter's ``LABEL``)."""
     target: str
     """``"module:Class"`` of the filter."""
+    function: str
+    """Public function of :mod:`pverosion.api` running the filter."""
+    accessor: str
+    """Method of the ``dataset.erosion`` accessor: the command with ``_`` for ``-`` ("" when the stage's input is
+    not a dataset)."""
 
 
 STAGE_INDEX: tuple[Stage, ...] = (
-    Stage("curvature", "Curvature (Rusinkiewicz)", "pverosion.filters.curvature:Curvature"),
-    Stage("weather", "Weathering (curvature-driven)", "pverosion.filters.weathering:Weathering"),
-    Stage("hydraulic", "Hydraulic erosion (particle fluid)", "pverosion.filters.hydraulic:HydraulicErosion"),
-    Stage("materials", "Materials from volume (BSP)", "pverosion.filters.materials:MaterialsFromVolume"),
-    Stage("sample-materials", "Material field sampling", "pverosion.filters.materials:MaterialSampler"),
-    Stage("voxel", "Voxel hydraulic erosion", "pverosion.filters.voxel:VoxelErosion"),
-    Stage("shard-graph", "Voronoi shards", "pverosion.filters.shards:ShardGraph"),
-    Stage("freeze-thaw", "Freeze-thaw weathering", "pverosion.filters.shards:FreezeThaw"),
-    Stage("repair", "Repair self-intersections", "pverosion.filters.repair:RepairIntersections"),
-    Stage("boolean", "Boolean operation", "pverosion.filters.repair:BooleanOperation"),
+    Stage("curvature", "Curvature (Rusinkiewicz)", "pverosion.filters.curvature:Curvature",
+          "curvature", "curvature"),
+    Stage("weather", "Weathering (curvature-driven)", "pverosion.filters.weathering:Weathering",
+          "weather", "weather"),
+    Stage("hydraulic", "Hydraulic erosion (particle fluid)", "pverosion.filters.hydraulic:HydraulicErosion",
+          "hydraulic_erosion", "hydraulic"),
+    Stage("materials", "Materials from volume (BSP)", "pverosion.filters.materials:MaterialsFromVolume",
+          "materials_from_volume", "materials"),
+    Stage("sample-materials", "Material field sampling", "pverosion.filters.materials:MaterialSampler",
+          "sample_materials", ""),
+    Stage("voxel", "Voxel hydraulic erosion", "pverosion.filters.voxel:VoxelErosion",
+          "voxel_erosion", "voxel"),
+    Stage("shard-graph", "Voronoi shards", "pverosion.filters.shards:ShardGraph",
+          "shard_graph", "shard_graph"),
+    Stage("freeze-thaw", "Freeze-thaw weathering", "pverosion.filters.shards:FreezeThaw",
+          "freeze_thaw", "freeze_thaw"),
+    Stage("repair", "Repair self-intersections", "pverosion.filters.repair:RepairIntersections",
+          "repair", "repair"),
+    Stage("boolean", "Boolean operation", "pverosion.filters.repair:BooleanOperation",
+          "boolean", "boolean"),
 )
 """Every stage, in the order of :data:`pverosion.filters.ALL_FILTERS`."""
 

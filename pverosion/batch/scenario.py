@@ -369,6 +369,8 @@ def _stage_options(cls: type[ErosionFilter], table: dict, *, seed: int, base: Pa
         except TypeError as exc:
             raise ScenarioError(f"{where}: {exc}") from None
         value = _check(param, value, where)
+        if param.convert is not None:  # emitters, drains given as TOML arrays: kept as their text (JSON records)
+            value = param.text(value)
         if param.path == "input" and value:
             full = (base / value).resolve()
             if not full.is_file():

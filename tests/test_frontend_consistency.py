@@ -1,0 +1,150 @@
+"""Every stage exposes the same options, with the same defaults, in every front end.
+
+The function (:mod:`pverosion.api`), the accessor method, the CLI
+subcommand, the batch stage and the ParaView proxy are all checked against
+the filter's :class:`~pverosion.filters.base.Param` metadata.
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import xml.etree.ElementTree as ET
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import pverosion
+from pverosion import api
+from pverosion._accessor import ErosionAccessor
+from pverosion._frontend import StageFunction
+from pverosion._stages import STAGE_INDEX, load_stage
+from pverosion.batch.scenario import STAGES, _stage_options
+from pverosion.cli import build_parser
+from pverosion.filters.paraview import _convert, make_proxy
+
+KEYWORD = inspect.Parameter.KEYWORD_ONLY
+EMPTY = inspect.Parameter.empty
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, (tuple, list, np.ndarray)) or isinstance(b, (tuple, list, np.ndarray)):
+        return np.shape(a) == np.shape(b) and bool(np.all(np.asarray(a) == np.asarray(b)))
+    return type(a) is type(b) and a == b
+
+
+@pytest.mark.parametrize("stage", STAGE_INDEX, ids=lambda s: s.command)
+def test_function_takes_every_option_with_its_default(stage):
+    cls = load_stage(stage.command)
+    function = getattr(api, stage.function)
+    assert getattr(pverosion, stage.function) is function
+    info: StageFunction = function.__pverosion_stage__
+    assert info.filter_cls is cls
+    parameters = inspect.signature(function).parameters
+    options = {name: p for name, p in parameters.items() if name in {q.name for q in cls.PARAMS}}
+    expected = {p.name for p in cls.PARAMS} - set(info.omitted)
+    assert set(options) == expected, stage.command
+    assert set(info.omitted) <= {p.name for p in cls.PARAMS}
+    for p in cls.PARAMS:
+        if p.name in options and options[p.name].default is not EMPTY:  # a required positional has no default
+            assert _same(options[p.name].default, p.python_default), (stage.command, p.name)
+            assert options[p.name].kind is KEYWORD, (stage.command, p.name)
+            p.validate(options[p.name].default)  # the Python default is a valid value of the option
+    extra = {name for name, q in parameters.items() if q.kind is KEYWORD} - expected - {"progress_bar"}
+    assert extra <= set(info.python_only), (stage.command, extra)
+    names = list(parameters)
+    if stage.function != "materials_from_volume":  # builds the field directly; no pipeline runs
+        assert names[-1] == "progress_bar" and parameters["progress_bar"].default is False
+    doc = inspect.getdoc(function)
+    assert "{options}" not in doc
+    for name in (*options, *info.python_only):
+        assert f"\n{name} : " in doc, (stage.function, name)  # numpydoc entry generated for every option
+
+
+@pytest.mark.parametrize("stage", [s for s in STAGE_INDEX if s.accessor], ids=lambda s: s.command)
+def test_accessor_method_is_the_function_on_the_dataset(stage):
+    assert stage.accessor == stage.command.replace("-", "_")
+    method = getattr(ErosionAccessor, stage.accessor)
+    function = getattr(api, stage.function)
+    accessor_params = list(inspect.signature(method).parameters.values())
+    function_params = list(inspect.signature(function).parameters.values())
+    assert accessor_params[0].name == "self"
+    assert accessor_params[1:] == function_params[1:]
+    first = function_params[0].name
+    assert f"\n{first} : " not in method.__doc__  # the dataset is not an option of the method
+
+
+@pytest.mark.parametrize("stage", STAGE_INDEX, ids=lambda s: s.command)
+def test_cli_subcommand_takes_every_option_with_its_default(stage):
+    cls = load_stage(stage.command)
+    parser = build_parser(stages={stage.command})
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[stage.command]
+    flags = {a.dest: a for a in sub._actions if a.option_strings and a.dest in {p.name for p in cls.PARAMS}}
+    assert set(flags) == {p.name for p in cls.PARAMS}
+    for p in cls.PARAMS:
+        assert flags[p.name].option_strings[0] == "--" + p.name.replace("_", "-")
+        assert _same(flags[p.name].default, p.default), (stage.command, p.name)
+
+
+@pytest.mark.parametrize("stage", [s for s in STAGE_INDEX if s.command in STAGES], ids=lambda s: s.command)
+def test_batch_stage_takes_every_option_with_its_default(stage, tmp_path):
+    cls = load_stage(stage.command)
+    assert STAGES[stage.command] is cls
+    table = {p.name: p.default for p in cls.PARAMS if p.path is None}
+    options = _stage_options(cls, table, seed=0, base=tmp_path, where="test")
+    assert options == table
+
+
+
+def _decorators():
+    def recorder(key):
+        def decorate(value=None, **kw):
+            def tag(obj):
+                setattr(obj, key, [*getattr(obj, key, []), value if value is not None else kw])
+                return obj
+            return tag
+        return decorate
+
+    return SimpleNamespace(
+        smproperty=SimpleNamespace(xml=recorder("_xml"), doublevector=recorder("_info"), input=recorder("_input")),
+        smdomain=SimpleNamespace(datatype=lambda **kw: (lambda c: c)),
+        smhint=SimpleNamespace(xml=lambda text: (lambda c: c)),
+        smproxy=SimpleNamespace(filter=lambda **kw: (lambda c: c)))
+
+
+@pytest.mark.parametrize("stage", STAGE_INDEX, ids=lambda s: s.command)
+def test_paraview_proxy_has_every_option_with_its_default(stage):
+    cls = load_stage(stage.command)
+    proxy = make_proxy(cls, _decorators(), __name__)
+    properties = {}
+    for value in vars(proxy).values():
+        for text in getattr(value, "_xml", []):
+            element = ET.fromstring(text)
+            properties[element.get("name")] = element
+    params = {p.camel: p for p in cls.PARAMS}
+    assert set(properties) == set(params)
+    for camel, element in properties.items():
+        p = params[camel]
+        values = tuple(element.get("default_values").split(" ")) if p.kind is not str or p.numbers == 3 else \
+            (element.get("default_values"),)
+        if p.kind is not str and p.choices is None:
+            values = tuple(p.kind(float(v)) if p.kind is not bool else bool(int(v)) for v in values)
+        shown = _convert(p, values)
+        assert _same(p.validate(shown), p.validate(p.default)), (stage.command, p.name)
+        assert (element.get("panel_visibility") == "advanced") == p.advanced
+
+
+def test_deprecated_names_still_work_with_a_warning():
+    import pyvista as pv
+
+    from pverosion._stages import resolve_command
+
+    with pytest.warns(DeprecationWarning, match="freeze-thaw"):
+        assert load_stage("shards") is load_stage("freeze-thaw")
+    assert resolve_command("shard-graph") == "shard-graph"
+    sphere = pv.Icosphere(radius=1.0, nsub=2)
+    with pytest.warns(DeprecationWarning, match="shard_graph"):
+        old = sphere.erosion.shards(cells=12, seed=2)
+    new = sphere.erosion.shard_graph(cells=12, seed=2)
+    assert np.array_equal(old["surface"].points, new["surface"].points)
