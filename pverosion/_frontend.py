@@ -45,6 +45,8 @@ class StageFunction:
     """Filter options the function does not take, each for a reason given in its docstring."""
     inputs: int = 1
     """Positional inputs before the options."""
+    positional: tuple[str, ...] = ()
+    """Options also taken by position (after the inputs), e.g. ``boolean(a, b, "difference")``."""
 
 
 def _type_text(p: Param) -> str:
@@ -69,12 +71,11 @@ def _entry(name: str, kind: str, doc: str) -> str:
 
 def param_entry(p: Param, *, required: bool = False) -> str:
     """The numpydoc entry of option ``p``: type, default (unless ``required``), description and units."""
-    doc = p.doc + (f" Units: {p.units}." if p.units else "")
-    return _entry(p.name, _type_text(p) if required else f"{_type_text(p)}, default: {_default_text(p)}", doc)
+    return _entry(p.name, _type_text(p) if required else f"{_type_text(p)}, default: {_default_text(p)}", p.help)
 
 
 def stage_function(filter_cls: type[ErosionFilter], *, python_only: dict[str, tuple[str, str]] | None = None,
-                   omitted: tuple[str, ...] = (), inputs: int = 1) -> Callable:
+                   omitted: tuple[str, ...] = (), inputs: int = 1, positional: tuple[str, ...] = ()) -> Callable:
     """Decorator: fill the ``{options}`` line of a public function's docstring from ``filter_cls.PARAMS``.
 
     The keyword-only parameters of the function are documented in their
@@ -106,7 +107,8 @@ def stage_function(filter_cls: type[ErosionFilter], *, python_only: dict[str, tu
         indent = " " * 4
         text = textwrap.indent("\n".join(entries), indent)
         function.__doc__ = function.__doc__.replace(f"{indent}{{options}}", text)
-        function.__pverosion_stage__ = StageFunction(filter_cls, python_only, tuple(omitted), inputs)
+        function.__pverosion_stage__ = StageFunction(filter_cls, python_only, tuple(omitted), inputs,
+                                                     tuple(positional))
         return function
 
     return decorate

@@ -136,7 +136,7 @@ def weather(
                         orientation=orientation, erodibility=erodibility, progress_bar=progress_bar)
 
 
-@stage_function(MaterialsFromVolume, omitted=("tree_file",))
+@stage_function(MaterialsFromVolume, omitted=("tree_file",), positional=("thresholds",))
 def materials_from_volume(
     volume,
     thresholds: Sequence[float] | str,
@@ -463,7 +463,7 @@ def repair(mesh: pv.PolyData, *, orientation: str = "outward", tolerance: float 
                         progress_bar=progress_bar)
 
 
-@stage_function(BooleanOperation, inputs=2)
+@stage_function(BooleanOperation, inputs=2, positional=("operation",))
 def boolean(a: pv.PolyData, b: pv.PolyData, operation: str = "union", *, orientation: str = "outward",
             tolerance: float = DEFAULT_TOLERANCE, improve: bool = False, progress_bar: bool = False) -> pv.PolyData:
     """Union, intersection or difference of two closed triangle meshes (Skorkovská's thesis §10.3).

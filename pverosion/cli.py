@@ -32,10 +32,10 @@ def _add_filter_options(parser: argparse.ArgumentParser, filter_cls: type[Erosio
         flag = "--" + p.name.replace("_", "-")
         if p.kind is bool:
             parser.add_argument(flag, dest=p.name, action=argparse.BooleanOptionalAction, default=p.default,
-                                help=p.doc)
+                                help=p.help)
         else:
             parser.add_argument(flag, dest=p.name, type=p.kind, choices=p.choices, default=p.default,
-                                help=f"{p.doc} (default: {p.default})")
+                                help=f"{p.help} (default: {p.default})")
 
 
 def _port_label(name: str) -> str:
@@ -293,7 +293,7 @@ def main(argv: list[str] | None = None) -> int:
     readable and nothing partial is written).
     """
     argv = sys.argv[1:] if argv is None else list(argv)
-    command = next((arg for arg in argv if not arg.startswith("-")), None)
+    command = typed = next((arg for arg in argv if not arg.startswith("-")), None)
     if command in DEPRECATED_COMMANDS:  # the old name runs the renamed stage, with a warning
         with warnings.catch_warnings():
             warnings.simplefilter("always", DeprecationWarning)
@@ -304,7 +304,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     from pverosion.filters.base import deferred_interrupt  # after --help, which needs no VTK
 
-    where = f"pverosion {args.command}"
+    where = f"pverosion {typed if typed in DEPRECATED_COMMANDS else args.command}"  # the name as typed
 
     def show(message, category, *_args, **_kwargs):
         print(f"{where}: warning: {message}", file=sys.stderr)

@@ -22,6 +22,7 @@ from pverosion._frontend import StageFunction
 from pverosion._stages import STAGE_INDEX, load_stage
 from pverosion.batch.scenario import STAGES, _stage_options
 from pverosion.cli import build_parser
+from pverosion.filters.base import parse_numbers
 from pverosion.filters.paraview import _convert, make_proxy
 
 KEYWORD = inspect.Parameter.KEYWORD_ONLY
@@ -29,6 +30,12 @@ EMPTY = inspect.Parameter.empty
 
 
 def _same(a, b) -> bool:
+    """Equal values of one option (vectors by their numbers, so "0,0,0" is (0.0, 0.0, 0.0))."""
+    if isinstance(a, str) and isinstance(b, str) and a and b and "," in a + b:
+        try:
+            a, b = parse_numbers(a, "a"), parse_numbers(b, "b")
+        except ValueError:
+            return a == b
     if isinstance(a, (tuple, list, np.ndarray)) or isinstance(b, (tuple, list, np.ndarray)):
         return np.shape(a) == np.shape(b) and bool(np.all(np.asarray(a) == np.asarray(b)))
     return type(a) is type(b) and a == b
@@ -47,9 +54,11 @@ def test_function_takes_every_option_with_its_default(stage):
     assert set(options) == expected, stage.command
     assert set(info.omitted) <= {p.name for p in cls.PARAMS}
     for p in cls.PARAMS:
-        if p.name in options and options[p.name].default is not EMPTY:  # a required positional has no default
+        if p.name not in options:
+            continue
+        assert options[p.name].kind is KEYWORD or p.name in info.positional, (stage.command, p.name)
+        if options[p.name].default is not EMPTY:  # a required positional has no default
             assert _same(options[p.name].default, p.python_default), (stage.command, p.name)
-            assert options[p.name].kind is KEYWORD, (stage.command, p.name)
             p.validate(options[p.name].default)  # the Python default is a valid value of the option
     extra = {name for name, q in parameters.items() if q.kind is KEYWORD} - expected - {"progress_bar"}
     assert extra <= set(info.python_only), (stage.command, extra)

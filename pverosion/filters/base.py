@@ -119,6 +119,11 @@ class Param:
         return type(self.default)
 
     @property
+    def help(self) -> str:
+        """The description with the units, as ``--help``, ParaView and the docstrings show it."""
+        return f"{self.doc} [{self.units}]" if self.units else self.doc
+
+    @property
     def camel(self) -> str:
         """CamelCase name used by the VTK methods and ParaView properties."""
         return "".join(part.capitalize() for part in self.name.split("_"))

@@ -26,25 +26,22 @@ from xml.sax.saxutils import escape, quoteattr
 
 from vtkmodules.vtkCommonCore import vtkOutputWindow
 
+from pverosion.filters import ALL_FILTERS
 from pverosion.filters.base import ErosionFilter, Param, TimeSteppedFilter
 from pverosion.plotting import CURVATURE_CMAP, CURVATURE_COLOURS
 
-__all__ = ["ADVANCED", "MENU_CATEGORY", "curvature_preset", "curvature_settings", "make_proxy",  # noqa: F822
-           "report_error", "vector_size"]  # ADVANCED is built by the module's __getattr__
+__all__ = ["ADVANCED", "MENU_CATEGORY", "curvature_preset", "curvature_settings", "make_proxy", "report_error",
+           "vector_size"]
 
 MENU_CATEGORY = "pverosion"
 
 
 
 
-def __getattr__(name: str):
-    if name == "ADVANCED":  # built on first use: it imports every filter module
-        from pverosion.filters import ALL_FILTERS
-
-        value = {cls.command_name(): frozenset(p.name for p in cls.PARAMS if p.advanced) for cls in ALL_FILTERS}
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+ADVANCED: dict[str, frozenset[str]] = {
+    cls.command_name(): frozenset(p.name for p in cls.PARAMS if p.advanced) for cls in ALL_FILTERS
+}
+"""Options shown only in ParaView's advanced panel (gear button), by command name (``Param.advanced``)."""
 
 
 def vector_size(p: Param) -> int:
@@ -53,7 +50,7 @@ def vector_size(p: Param) -> int:
 
 
 def _property_xml(p: Param, command: str, advanced: bool) -> str:
-    doc = f"<Documentation>{escape(p.doc)}</Documentation>"
+    doc = f"<Documentation>{escape(p.help)}</Documentation>"
     label = quoteattr(p.name.replace("_", " ").title())
     head = f'name="{p.camel}" label={label} command="{command}"' + (' panel_visibility="advanced"' if advanced else "")
     if p.choices is not None:

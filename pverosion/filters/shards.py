@@ -70,7 +70,8 @@ _GENERATION_PARAMS = (
           maximum=0.49, advanced=True),
     Param("layers", "", "Slab thicknesses from the bottom up, as t1,t2,... (cycled; default: the spacing); hex: "
           "the height of the column pieces (default: whole columns).", numbers=0),
-    Param("tilt", 0.0, "Tilt of the slab pattern about x, in degrees.", minimum=-90.0, maximum=90.0, advanced=True),
+    Param("tilt", 0.0, "Tilt of the slab pattern about x.", minimum=-90.0, maximum=90.0, units="degrees",
+          advanced=True),
     Param("radius_gradient", "0,0,0", "Poisson disc: change of the radius per unit length, as x,y,z.", numbers=3,
           advanced=True),
     Param("seed", 0, "Random seed of the seed pattern and of the water paths.", minimum=0, advanced=True),
@@ -296,8 +297,8 @@ class FreezeThaw(_ShardSource, TimeSteppedFilter):
         Param("core_plane", "", "Also make core the cells whose seed x has n . x >= d, as nx,ny,nz,d.", numbers=4),
         Param("core_window", "", "Sphere x,y,z,r whose cells are not core (an opening for the erosion).", numbers=4),
         Param("water_direction", "0,0,-1", "Mean direction the water travels in, as x,y,z.", numbers=3),
-        Param("spread", 0.0, "Half-angle (degrees) of the cone of water directions.", minimum=0.0, maximum=180.0,
-              advanced=True),
+        Param("spread", 0.0, "Half-angle of the cone of water directions.", minimum=0.0, maximum=180.0,
+              units="degrees", advanced=True),
         Param("gravity", "0,0,-1", "Direction water flows in between links, as x,y,z.", numbers=3),
         Param("resistance", 0.0, "Resistance rho of the rock to the flow, in [0, 1] (constant; Python front ends "
               "also take a function or a 3-D image).", minimum=0.0, maximum=1.0),
