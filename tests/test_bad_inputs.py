@@ -99,7 +99,7 @@ CASES = {
                             lambda d: pverosion.weather(pv.read(d / "nan.vtp"))),
     "inf points, hydraulic": (["hydraulic", "inf.vtp", "-o", "out.vtm", "--emitter", EMITTER],
                               r"NaN or infinite coordinates",
-                              lambda d: pverosion.hydraulic_erosion(pv.read(d / "inf.vtp"), emitters=EMITTER)),
+                              lambda d: pverosion.hydraulic_erosion(pv.read(d / "inf.vtp"), emitter=EMITTER)),
     "NaN points, shards": (["shard-graph", "nan.vtp", "-o", "out.vtm"], r"NaN or infinite coordinates",
                            lambda d: pverosion.shard_graph(pv.read(d / "nan.vtp"))),
     "non-triangles": (["curvature", "quads.vtp", "-o", "out.vtp"], r"not triangles",
@@ -108,7 +108,7 @@ CASES = {
                      lambda d: pverosion.weather(pv.read(d / "fan.vtp"))),
     "open mesh, hydraulic": (["hydraulic", "open.vtp", "-o", "out.vtm", "--emitter", EMITTER],
                              r"needs a closed mesh.*--close-holes",
-                             lambda d: pverosion.hydraulic_erosion(pv.read(d / "open.vtp"), emitters=EMITTER)),
+                             lambda d: pverosion.hydraulic_erosion(pv.read(d / "open.vtp"), emitter=EMITTER)),
     "NaN option": (["weather", "sphere.vtp", "-o", "out.vtp", "--power", "nan"], r"--power must be finite",
                    lambda d: pverosion.weather(_sphere(), power=float("nan"))),
     "inf option": (["voxel", "grid.vti", "-o", "out.vtm", "--time-step", "inf"], r"--time-step must be finite",
@@ -124,7 +124,7 @@ CASES = {
     "short vector": (["hydraulic", "sphere.vtp", "-o", "out.vtm", "--emitter", EMITTER, "--gravity", "0,0"],
                      r"--gravity needs 3 numbers", None),
     "malformed emitter": (["hydraulic", "sphere.vtp", "-o", "out.vtm", "--emitter", "1,2"], r"8 or 9 numbers",
-                          lambda d: pverosion.hydraulic_erosion(_sphere(), emitters="1,2")),
+                          lambda d: pverosion.hydraulic_erosion(_sphere(), emitter="1,2")),
     "bad output extension": (["weather", "sphere.vtp", "-o", "out.yi8"], r"-o out.yi8: .*got '.yi8'", None),
     "output is a folder": (["weather", "sphere.vtp", "-o", "folder.vtp"], r"is a folder", None),
     "output under a file": (["weather", "sphere.vtp", "-o", "sphere.vtp/out.vtp"], r"is not a folder", None),
@@ -151,7 +151,7 @@ CASES = {
     "absurd cells": (["shard-graph", "sphere.vtp", "-o", "out.vtm", "--cells", "1000000000"],
                      r"--cells: a graph of 1000000000 shards would need",
                      lambda d: pverosion.shard_graph(_sphere(), cells=10**9)),
-    "absurd paths per step": (["shards", "sphere.vtp", "-o", "out.vtm", "--cells", "20", "--iterations", "1",
+    "absurd paths per step": (["freeze-thaw", "sphere.vtp", "-o", "out.vtm", "--cells", "20", "--iterations", "1",
                                "--paths-per-step", "1000000000000"], r"--paths-per-step: 1000000000000 water paths",
                               None),
     # materials, sample-materials, repair, boolean
@@ -262,8 +262,8 @@ def test_output_times_are_lazy():
 def test_open_mesh_is_closed_on_request(inputs):
     mesh = pv.read(inputs / "open.vtp")
     with pytest.raises(InvalidMeshError, match="close_holes=True"):
-        pverosion.hydraulic_erosion(mesh, emitters=EMITTER, iterations=0)
-    result = pverosion.hydraulic_erosion(mesh, emitters=EMITTER, iterations=0, close_holes=True)
+        pverosion.hydraulic_erosion(mesh, emitter=EMITTER, iterations=0)
+    result = pverosion.hydraulic_erosion(mesh, emitter=EMITTER, iterations=0, close_holes=True)
     closed = result["mesh"]
     assert closed.n_cells > mesh.n_cells
     assert closed.extract_feature_edges(boundary_edges=True, feature_edges=False, manifold_edges=False,
@@ -272,7 +272,7 @@ def test_open_mesh_is_closed_on_request(inputs):
 
 def test_a_run_that_emits_nothing_warns(inputs):
     with pytest.warns(UserWarning, match=r"no particle was emitted in 2 iterations"):
-        pverosion.hydraulic_erosion(_sphere(), emitters="0,0,2,0,0,-1,0.3,0.001", iterations=2)
+        pverosion.hydraulic_erosion(_sphere(), emitter="0,0,2,0,0,-1,0.3,0.001", iterations=2)
 
 
 # --- the error path of the VTK pipeline ----------------------------------------------------------------------
@@ -443,7 +443,7 @@ def test_cli_messages_use_cli_syntax():
 
 def test_a_run_whose_water_drains_at_once_warns():
     with pytest.warns(UserWarning, match=r"all \d+ emitted particles were drained or left the domain .* at once"):
-        pverosion.hydraulic_erosion(_sphere(), emitters=EMITTER, drains="box:-1,-1,1.5,1,1,2.5", iterations=3)
+        pverosion.hydraulic_erosion(_sphere(), emitter=EMITTER, drain="box:-1,-1,1.5,1,1,2.5", iterations=3)
 
 
 def test_a_grid_too_large_for_memory_is_refused(monkeypatch):

@@ -157,3 +157,80 @@ def test_deprecated_names_still_work_with_a_warning():
         old = sphere.erosion.shards(cells=12, seed=2)
     new = sphere.erosion.shard_graph(cells=12, seed=2)
     assert np.array_equal(old["surface"].points, new["surface"].points)
+
+
+def test_deprecated_keywords_map_to_the_current_options():
+    import pyvista as pv
+
+    sphere = pv.Icosphere(radius=1.0, nsub=2)
+    with pytest.warns(DeprecationWarning, match="emitters= is deprecated"), \
+            pytest.raises(ValueError, match="needs water"):
+        pverosion.hydraulic_erosion(sphere, emitters=[], iterations=1)
+    with pytest.raises(TypeError, match="give emitter= only"):
+        pverosion.hydraulic_erosion(sphere, emitter="0,0,2,0,0,-1,0.3,5", emitters="0,0,2,0,0,-1,0.3,5")
+    with pytest.warns(DeprecationWarning, match="paths=N is deprecated"):
+        old = pverosion.freeze_thaw(sphere, paths=40, cells=20, seed=1, record_paths=False)
+    new = pverosion.freeze_thaw(sphere, iterations=1, paths_per_step=40, cells=20, seed=1, record_paths=False)
+    assert np.array_equal(old["surface"].points, new["surface"].points)
+    assert old["surface"].field_data["shard_paths"][0] == 40
+
+
+def test_cli_runs_a_deprecated_stage_name_with_a_warning(tmp_path, capsys):
+    import pyvista as pv
+
+    from pverosion.cli import main
+
+    pv.Icosphere(radius=1.0, nsub=2).save(tmp_path / "sphere.vtp")
+    args = [str(tmp_path / "sphere.vtp"), "--cells", "20", "--iterations", "1", "--paths-per-step", "10"]
+    assert main(["shards", *args, "-o", str(tmp_path / "old.vtm")]) == 0
+    assert "stage 'shards' is deprecated; use 'freeze-thaw'" in capsys.readouterr().err
+    assert main(["freeze-thaw", *args, "-o", str(tmp_path / "new.vtm")]) == 0
+    assert "deprecated" not in capsys.readouterr().err
+    old, new = pv.read(tmp_path / "old.vtm"), pv.read(tmp_path / "new.vtm")
+    assert np.array_equal(old["surface"].points, new["surface"].points)
+
+
+def test_structured_options_keep_python_objects():
+    from pverosion.filters import HydraulicErosion
+    from pverosion.filters.hydraulic import format_emitters, parse_emitters
+    from pverosion.kernels.particle_fluid import Drain, Emitter
+
+    emitter = Emitter((0.0, 0.0, 2.0), (0.0, 0.0, -1.0), 0.3, 5.0, 1.5)
+    alg = HydraulicErosion(emitter=[emitter], drain=Drain("plane", (0, 0, 1, 5)))
+    assert alg.structured_option("emitter")[0] is emitter  # passed through, not turned into text
+    assert alg.structured_option("drain") == (Drain("plane", (0.0, 0.0, 1.0, 5.0)),)
+    assert parse_emitters(format_emitters([emitter])) == [emitter]
+    as_text = HydraulicErosion(emitter="0,0,2,0,0,-1,0.3,5,1.5")
+    assert as_text.structured_option("emitter") == (emitter,)
+    numbers = HydraulicErosion(emitter=[0, 0, 2, 0, 0, -1, 0.3, 5, 1.5])
+    assert numbers.structured_option("emitter") == (emitter,)
+    with pytest.raises(ValueError, match="emitter"):
+        HydraulicErosion(emitter=[[1, 2, 3]])
+    with pytest.raises(TypeError, match="drain"):
+        HydraulicErosion(drain=[3.0])
+
+
+def test_vector_options_take_sequences_and_none():
+    from pverosion.filters import FreezeThaw
+
+    p = FreezeThaw.param("water_direction")
+    assert p.validate((1, 0.5, -2)) == "1.0,0.5,-2.0"
+    assert p.python_default == (0.0, 0.0, -1.0)
+    assert FreezeThaw.param("core_plane").validate(None) == ""
+    with pytest.raises(ValueError, match="water_direction needs 3 numbers"):
+        p.validate((1, 2))
+    with pytest.raises(ValueError, match="finite"):
+        p.validate((1, float("nan"), 2))
+    with pytest.raises(TypeError, match="water_direction"):
+        p.validate(3.0)
+
+
+def test_progress_bar_shows_the_run(capsys):
+    import pyvista as pv
+
+    sphere = pv.Icosphere(radius=1.0, nsub=2)
+    quiet = pverosion.curvature(sphere)
+    assert "100%" not in capsys.readouterr().err
+    shown = pverosion.curvature(sphere, progress_bar=True)
+    assert "curvature: 100%" in capsys.readouterr().err
+    assert np.array_equal(quiet["mean_curvature"], shown["mean_curvature"])

@@ -51,8 +51,8 @@ def test_stepping_through_times_matches_a_fresh_run():
 
 def test_function_accessor_and_cli_agree(tmp_path):
     slab = _slab()
-    by_function = pverosion.hydraulic_erosion(slab, emitters=[EMITTER], drains=[DRAIN], radius=0.06, iterations=5)
-    by_accessor = slab.erosion.hydraulic(emitters=EMITTER, drains=DRAIN, radius=0.06, iterations=5)
+    by_function = pverosion.hydraulic_erosion(slab, emitter=[EMITTER], drain=[DRAIN], radius=0.06, iterations=5)
+    by_accessor = slab.erosion.hydraulic(emitter=EMITTER, drain=DRAIN, radius=0.06, iterations=5)
     np.testing.assert_array_equal(by_function["mesh"].points, by_accessor["mesh"].points)
     src = tmp_path / "slab.vtp"
     slab.save(src)
@@ -69,26 +69,26 @@ def test_numbers_and_kernel_objects_work_as_emitters():
 
     slab = _slab()
     numbers = [float(v) for v in EMITTER.split(",")]
-    a = pverosion.hydraulic_erosion(slab, emitters=[numbers], drains=DRAIN, radius=0.06, iterations=3)
-    b = pverosion.hydraulic_erosion(slab, emitters=EMITTER, drains=DRAIN, radius=0.06, iterations=3)
+    a = pverosion.hydraulic_erosion(slab, emitter=[numbers], drain=DRAIN, radius=0.06, iterations=3)
+    b = pverosion.hydraulic_erosion(slab, emitter=EMITTER, drain=DRAIN, radius=0.06, iterations=3)
     np.testing.assert_array_equal(a["particles"].points, b["particles"].points)
     # an Emitter object stands for the same source (its direction is stored normalised)
-    c = pverosion.hydraulic_erosion(slab, emitters=[Emitter.parse(EMITTER)], drains=DRAIN, radius=0.06, iterations=3)
+    c = pverosion.hydraulic_erosion(slab, emitter=[Emitter.parse(EMITTER)], drain=DRAIN, radius=0.06, iterations=3)
     assert c["particles"].n_points == a["particles"].n_points
 
 
 def test_bad_input_is_named():
     slab = _slab()
     with pytest.raises(ValueError, match="emitter"):
-        pverosion.hydraulic_erosion(slab, emitters=[], iterations=2)
+        pverosion.hydraulic_erosion(slab, emitter=[], iterations=2)
     with pytest.raises(ValueError):
-        pverosion.hydraulic_erosion(slab, emitters=["1,2,3"], iterations=2)
+        pverosion.hydraulic_erosion(slab, emitter=["1,2,3"], iterations=2)
     with pytest.raises(ValueError, match="model"):
-        pverosion.hydraulic_erosion(slab, emitters=[EMITTER], model="wind")
+        pverosion.hydraulic_erosion(slab, emitter=[EMITTER], model="wind")
     with pytest.raises(TypeError, match="PolyData"):
-        pverosion.hydraulic_erosion(pv.ImageData(dimensions=(3, 3, 3)), emitters=[EMITTER])
+        pverosion.hydraulic_erosion(pv.ImageData(dimensions=(3, 3, 3)), emitter=[EMITTER])
     with pytest.raises(pverosion.InvalidMeshError):
-        pverosion.hydraulic_erosion(pv.PolyData(), emitters=[EMITTER])
+        pverosion.hydraulic_erosion(pv.PolyData(), emitter=[EMITTER])
 
 
 def test_a_failed_run_reports_no_progress_it_did_not_make():

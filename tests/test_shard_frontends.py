@@ -79,7 +79,7 @@ def test_time_steps_continue_and_rerun_bit_for_bit(cone):
 def test_front_ends_take_resistance_fields_and_core_functions(cone):
     image = pv.ImageData(dimensions=(8, 8, 8), spacing=(0.3, 0.3, 0.15), origin=(-1.05, -1.05, 0.0))
     image.point_data["rho"] = np.full(image.n_points, 1.0)
-    options = {"paths": 2000, "cells": 120, "seed": 1, "shards": False, "record_paths": False}
+    options = {"iterations": 1, "paths_per_step": 2000, "cells": 120, "seed": 1, "shards": False, "record_paths": False}
     soft = pverosion.freeze_thaw(cone, **options)
     hard = pverosion.freeze_thaw(cone, resistance=image, **options)
     # resistance absorbs more water per link: more damage where the paths go, so more breaks in total
@@ -87,7 +87,7 @@ def test_front_ends_take_resistance_fields_and_core_functions(cone):
     kept = cone.erosion.freeze_thaw(core=lambda seeds: np.ones(len(seeds), bool), **options)
     assert kept["surface"].field_data["shard_solid_cells"][0] == kept["surface"].field_data["shard_cells"][0]
     assert not {"shards", "paths"} & set(kept.keys())
-    assert cone.erosion.shards(cells=50)["surface"].n_cells > 0
+    assert cone.erosion.shard_graph(cells=50)["surface"].n_cells > 0
 
 
 def test_bad_inputs_raise_clear_errors(cone):
@@ -101,18 +101,18 @@ def test_bad_inputs_raise_clear_errors(cone):
     with pytest.raises(TypeError, match="resistance"):
         FreezeThaw().SetResistanceField("granite")
     with pytest.raises(ValueError, match="paths"):
-        pverosion.freeze_thaw(cone, paths=-1)
+        pverosion.freeze_thaw(cone, paths_per_step=0)
 
 
 def test_cli_writes_the_result_and_the_series(tmp_path, cone, capsys):
     src = tmp_path / "cone.vtp"
     cone.save(src)
-    code = main(["shards", str(src), "-o", str(tmp_path / "out.vtm"), "--cells", "80", "--iterations", "2",
+    code = main(["freeze-thaw", str(src), "-o", str(tmp_path / "out.vtm"), "--cells", "80", "--iterations", "2",
                  "--paths-per-step", "300", "--save-every", "1", "--screenshot", str(tmp_path / "shot.png")])
     assert code == 0
     out = pv.read(tmp_path / "out.vtm")
     assert set(out.keys()) >= {"surface", "shards", "links", "paths"}
     assert pv.get_reader(tmp_path / "out.pvd").time_values == [0.0, 1.0, 2.0]
     assert (tmp_path / "shot.png").stat().st_size > 0
-    assert main(["shards", str(src), "-o", str(tmp_path / "bad.vtm"), "--water-direction", "0,0"]) == 2
+    assert main(["freeze-thaw", str(src), "-o", str(tmp_path / "bad.vtm"), "--water-direction", "0,0"]) == 2
     assert "--water-direction" in capsys.readouterr().err
