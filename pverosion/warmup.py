@@ -59,7 +59,7 @@ def _hydraulic() -> None:
     from pverosion.api import hydraulic_erosion
 
     slab = pv.Box(bounds=(-2, 2, -2, 2, -0.5, 0.5), level=4, quads=False).clean()
-    hydraulic_erosion(slab, emitters=["0,0,1.2,0.3,0,-1,0.3,500"], drains=["plane:0,0,-1,0.2"], radius=0.1,
+    hydraulic_erosion(slab, emitter=["0,0,1.2,0.3,0,-1,0.3,500"], drain=["plane:0,0,-1,0.2"], radius=0.1,
                       iterations=2)
 
 
@@ -95,7 +95,7 @@ def _shards() -> None:
     from pverosion.api import freeze_thaw
     from pverosion.shard_scenes import hill_cone
 
-    freeze_thaw(hill_cone(resolution=16), paths=50, cells=20)
+    freeze_thaw(hill_cone(resolution=16), iterations=1, paths_per_step=50, cells=20)
 
 
 def _repair() -> None:

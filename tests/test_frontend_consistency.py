@@ -234,3 +234,24 @@ def test_progress_bar_shows_the_run(capsys):
     shown = pverosion.curvature(sphere, progress_bar=True)
     assert "curvature: 100%" in capsys.readouterr().err
     assert np.array_equal(quiet["mean_curvature"], shown["mean_curvature"])
+
+
+def test_batch_reads_an_old_stage_name_as_the_current_one():
+    from pverosion.batch import parse_scenario
+
+    text = """
+[input]
+example = "rock"
+subdivisions = 1
+[[stages]]
+stage = "{stage}"
+cells = 20
+[sweep]
+"{label}.paths_per_step" = [10, 20]
+"""
+    with pytest.warns(DeprecationWarning, match="freeze-thaw"):
+        old = parse_scenario(text.format(stage="shards", label="shards"))
+    new = parse_scenario(text.format(stage="freeze-thaw", label="freeze_thaw"))  # default label: "-" as "_"
+    assert [job.stages[0]["stage"] for job in old.jobs] == ["freeze-thaw", "freeze-thaw"]
+    assert [job.stages[0]["options"] for job in old.jobs] == [job.stages[0]["options"] for job in new.jobs]
+    assert [job.stages[0]["options"]["paths_per_step"] for job in new.jobs] == [10, 20]

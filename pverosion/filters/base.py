@@ -88,8 +88,7 @@ class Param:
         Units of a quantity (``"m/s"``, ``"Pa"``; ``"model units"`` for
         lengths in the mesh's units); empty for a pure number.
     advanced : bool
-        Solver tuning: ParaView shows it only in the advanced panel, and the
-        Python docstrings list it after the main options.
+        Solver tuning: ParaView shows it only in the advanced panel.
     """
 
     name: str
