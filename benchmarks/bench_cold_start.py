@@ -42,13 +42,12 @@ from pathlib import Path
 
 import numpy as np
 import pyvista as pv
+from _load import add_load_option, run
 
 from pverosion._stages import STAGE_INDEX
-from pverosion.hydraulic_scenes import pour_scene
-from pverosion.intersection_scenes import two_spheres
-from pverosion.voxel_scenes import meander_grid
-
-from _load import add_load_option, run
+from pverosion.scenes.hydraulic import pour_scene
+from pverosion.scenes.intersection import two_spheres
+from pverosion.scenes.voxel import meander_grid
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ROOT.parent / "shared" / "data" / "bunny.ply"

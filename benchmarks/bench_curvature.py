@@ -15,11 +15,10 @@ from pathlib import Path
 
 import numpy as np
 import pyvista as pv
+from _load import add_load_option, run
 
 import pverosion
 from pverosion.kernels import orient_faces, principal_curvatures
-
-from _load import add_load_option, run
 
 DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
 

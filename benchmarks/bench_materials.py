@@ -27,11 +27,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _load import add_load_option, run
 
 import pverosion
 from pverosion.io import read_image
-
-from _load import add_load_option, run
 
 DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "HeadMRVolume.mhd"
 THRESHOLDS = (40.0, 100.0, 160.0)

@@ -17,7 +17,7 @@ import pyvista as pv
 from pverosion.filters import FreezeThaw
 from pverosion.io import TimeSeriesWriter
 from pverosion.plotting import render_strip
-from pverosion.shard_scenes import SCENES, ridge_scene
+from pverosion.scenes.shards import SCENES, ridge_scene
 
 DEM = Path(__file__).resolve().parents[2] / "shared" / "data" / "SainteHelens.dem"
 

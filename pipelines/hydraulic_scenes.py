@@ -20,10 +20,10 @@ import numpy as np
 import pyvista as pv
 
 from pverosion.filters import HydraulicErosion
-from pverosion.hydraulic_scenes import canyon_scene, lake_scene, pour_scene, river_scene
 from pverosion.io import TimeSeriesWriter
-from pverosion.kernels.overhangs import overhanging_vertices
+from pverosion.kernels.hydraulic.overhangs import overhanging_vertices
 from pverosion.plotting import render_strip
+from pverosion.scenes.hydraulic import canyon_scene, lake_scene, pour_scene, river_scene
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 

@@ -20,9 +20,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import pverosion
-from pverosion.kernels.bsp import BSPNode, BSPTree
-from pverosion.kernels.materials import BSPMaterials, Gradual
-from pverosion.kernels.surfaces import (
+from pverosion.kernels.materials.bsp import BSPNode, BSPTree
+from pverosion.kernels.materials.field import BSPMaterials, Gradual
+from pverosion.kernels.materials.surfaces import (
     Cylinder,
     Ellipsoid,
     EllipticHyperboloid,

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from pverosion.examples import load_rock
 from pverosion.io import read_mesh
-from pverosion.scenes import power_modifier
+from pverosion.scenes.weathering import power_modifier
 
 BUNNY = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import pyvista as pv
 
 from pverosion import api
-from pverosion.kernels.mesh_repair import DEFAULT_TOLERANCE
+from pverosion.kernels.repair.mesh_repair import DEFAULT_TOLERANCE
 
 
 @pv.register_dataset_accessor("erosion", pv.DataSet)

@@ -14,16 +14,16 @@ from pverosion.filters.repair import BooleanOperation, RepairIntersections
 from pverosion.filters.shards import FreezeThaw, ShardGraph
 from pverosion.filters.voxel import VoxelErosion
 from pverosion.filters.weathering import Weathering
-from pverosion.kernels.bsp import BSPTree
-from pverosion.kernels.materials import (
+from pverosion.kernels.fluid.particle_fluid import Drain, Emitter
+from pverosion.kernels.materials.bsp import BSPTree
+from pverosion.kernels.materials.field import (
     BSPMaterials,
     Gradual,
     MaterialField,
     bsp_from_volume,
 )
-from pverosion.kernels.mesh_repair import DEFAULT_TOLERANCE
-from pverosion.kernels.particle_fluid import Drain, Emitter
-from pverosion.kernels.weathering import Erodibility
+from pverosion.kernels.repair.mesh_repair import DEFAULT_TOLERANCE
+from pverosion.kernels.weathering.model import Erodibility
 
 __all__ = ["boolean", "curvature", "freeze_thaw", "hydraulic_erosion", "materials_from_volume", "repair",
            "sample_materials", "shard_graph", "voxel_erosion", "weather"]
@@ -507,7 +507,7 @@ def hydraulic_erosion(
         its outside. It is not modified.
     emitters : sequence
         Water sources, each ``"x,y,z,dx,dy,dz,r,rate[,speed]"``, a sequence of
-        those 8 or 9 numbers, or a :class:`~pverosion.kernels.particle_fluid.Emitter`.
+        those 8 or 9 numbers, or a :class:`~pverosion.kernels.fluid.particle_fluid.Emitter`.
     iterations : int, default: 100
         Iterations (one fluid step and one erosion step each).
     model : {"curvature", "sediment"}, default: "curvature"
@@ -516,7 +516,7 @@ def hydraulic_erosion(
         (thesis eqs. 8.2–8.7).
     drains : sequence, optional
         ``"plane:nx,ny,nz,d"`` / ``"box:xmin,ymin,zmin,xmax,ymax,zmax"`` strings
-        or :class:`~pverosion.kernels.particle_fluid.Drain` objects; particles
+        or :class:`~pverosion.kernels.fluid.particle_fluid.Drain` objects; particles
         leaving the domain are drained anyway.
     radius : float, optional
         Particle radius; default half the mesh's average edge length.

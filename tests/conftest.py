@@ -61,8 +61,8 @@ def bunny() -> pv.PolyData:
 @pytest.fixture(scope="session")
 def closed_bunny(bunny) -> tuple[np.ndarray, np.ndarray]:
     """The bunny scan with its holes filled and every part turned outward: points (V, 3) and faces (F, 3)."""
-    from pverosion.hydraulic_scenes import fill_holes
-    from pverosion.kernels.mesh_repair import outward_parts
+    from pverosion.kernels.repair.mesh_repair import outward_parts
+    from pverosion.scenes.hydraulic import fill_holes
 
     points, faces = fill_holes(np.asarray(bunny.points, float), bunny.regular_faces)
     return points, outward_parts(points, faces)

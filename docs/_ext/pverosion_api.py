@@ -21,8 +21,8 @@ GROUPS = (
     ("Kernels (arrays in, arrays out)", ("pverosion.kernels",)),
     ("Batch runs", ("pverosion.batch",)),
     ("Command line", ("pverosion.cli",)),
-    ("Example data and scenes", ("pverosion.examples", "pverosion.scenes", "pverosion.hydraulic_scenes",
-                                 "pverosion.voxel_scenes", "pverosion.shard_scenes", "pverosion.intersection_scenes")),
+    ("Example data and scenes", ("pverosion.examples", "pverosion.scenes.weathering", "pverosion.scenes.hydraulic",
+                                 "pverosion.scenes.voxel", "pverosion.scenes.shards", "pverosion.scenes.intersection")),
 )
 ACCESSOR = "pverosion._accessor.ErosionAccessor"
 

@@ -21,12 +21,12 @@ from pverosion.filters.base import (
     set_point_array,
 )
 from pverosion.filters.weathering import MeshSolverFilter, weathering_output
-from pverosion.kernels.geometry import average_edge_length
-from pverosion.kernels.hydraulic_erosion import MODELS, HydraulicSolver, ShearParameters
-from pverosion.kernels.mesh_evolution import REPAIR_MODES
-from pverosion.kernels.normalize import SOLVER_NORMALIZATIONS
-from pverosion.kernels.orientation import ORIENTATIONS
-from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters
+from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS
+from pverosion.kernels.fluid.particle_fluid import Drain, Emitter, FluidParameters
+from pverosion.kernels.hydraulic.erosion import MODELS, HydraulicSolver, ShearParameters
+from pverosion.kernels.mesh.geometry import average_edge_length
+from pverosion.kernels.mesh.orientation import ORIENTATIONS
+from pverosion.kernels.solver.mesh_evolution import REPAIR_MODES
 from pverosion.kernels.validation import InvalidMeshError
 from pverosion.limits import check_memory, check_work
 
@@ -179,7 +179,7 @@ class HydraulicErosion(MeshSolverFilter):
             raise ValueError("hydraulic erosion needs water: give at least one emitter x,y,z,dx,dy,dz,r,rate")
         holes = topology.n_boundary_edges
         if holes and self.get_option("close_holes"):
-            from pverosion.hydraulic_scenes import fill_holes  # the scenes' hole filling (imports this module)
+            from pverosion.scenes.hydraulic import fill_holes  # the scenes' hole filling (imports this module)
 
             points, faces = fill_holes(points, faces)
         elif holes:

@@ -38,9 +38,12 @@ from pverosion.filters.base import (
     set_field_value,
     set_multiblock,
 )
-from pverosion.kernels.freeze_thaw import CORE, FreezeThawParameters, FreezeThawSimulation, PathRecord
-from pverosion.kernels.geometry import signed_volume
-from pverosion.kernels.seed_patterns import (
+from pverosion.kernels.mesh.geometry import signed_volume
+from pverosion.kernels.shards.freeze_thaw import CORE, FreezeThawParameters, FreezeThawSimulation, PathRecord
+from pverosion.kernels.shards.geometry import LinkMesh, cell_surfaces, cells_boundary, link_polygons
+from pverosion.kernels.shards.graph import ShardGraph as Graph
+from pverosion.kernels.shards.graph import build_shards
+from pverosion.kernels.shards.seed_patterns import (
     hex_column_seeds,
     inside_mesh,
     jittered_grid_seeds,
@@ -49,9 +52,6 @@ from pverosion.kernels.seed_patterns import (
     slab_seeds,
     uniform_seeds,
 )
-from pverosion.kernels.shard_geometry import LinkMesh, cell_surfaces, cells_boundary, link_polygons
-from pverosion.kernels.shards import ShardGraph as Graph
-from pverosion.kernels.shards import build_shards
 from pverosion.limits import check_memory, check_work
 
 __all__ = ["CORE_CHOICES", "PATTERNS", "FreezeThaw", "ShardGraph", "pattern_seeds", "shard_blocks"]
@@ -159,7 +159,7 @@ def shard_blocks(graph: Graph, *, solid: np.ndarray | None = None, core: np.ndar
     shards : bool
         Include the per-cell ``shards`` block (the heaviest).
     links : LinkMesh, optional
-        Precomputed :func:`~pverosion.kernels.shard_geometry.link_polygons`.
+        Precomputed :func:`~pverosion.kernels.shards.geometry.link_polygons`.
     """
     solid = np.ones(graph.n_cells, bool) if solid is None else solid
     core = np.zeros(graph.n_cells, bool) if core is None else core

@@ -30,11 +30,11 @@ from pverosion.filters.base import (
     set_multiblock,
 )
 from pverosion.filters.materials import grid_points
-from pverosion.kernels.materials import MaterialField
-from pverosion.kernels.pressure import LIQUID
-from pverosion.kernels.voxel_erosion import MODELS, ErosionParameters, VoxelErosionSolver
-from pverosion.kernels.voxel_fluid import ADVECTION_SCHEMES, VoxelFluid, cell_velocity
-from pverosion.kernels.voxelize import height_field_amount, voxelize_mesh
+from pverosion.kernels.materials.field import MaterialField
+from pverosion.kernels.voxel.erosion import MODELS, ErosionParameters, VoxelErosionSolver
+from pverosion.kernels.voxel.fluid import ADVECTION_SCHEMES, VoxelFluid, cell_velocity
+from pverosion.kernels.voxel.pressure import LIQUID
+from pverosion.kernels.voxel.voxelize import height_field_amount, voxelize_mesh
 from pverosion.limits import check_memory, check_work
 
 __all__ = [
@@ -273,7 +273,7 @@ def extract_material_surface(image, *, method: str = "flying_edges", iso: float 
 
 def voxel_solver(grid, *, params: ErosionParameters | None = None, source_velocity=(0.0, 0.0, 0.0),
                  **fluid_options) -> VoxelErosionSolver:
-    """A :class:`~pverosion.kernels.voxel_erosion.VoxelErosionSolver` for a voxel grid ImageData.
+    """A :class:`~pverosion.kernels.voxel.erosion.VoxelErosionSolver` for a voxel grid ImageData.
 
     Parameters
     ----------
@@ -282,7 +282,7 @@ def voxel_solver(grid, *, params: ErosionParameters | None = None, source_veloci
     params : ErosionParameters, optional
     source_velocity : (3,) float, default: (0, 0, 0)
     **fluid_options
-        ``viscosity``, ``tolerance``, ``cfl``, ... of :class:`~pverosion.kernels.voxel_fluid.VoxelFluid`.
+        ``viscosity``, ``tolerance``, ``cfl``, ... of :class:`~pverosion.kernels.voxel.fluid.VoxelFluid`.
 
     Raises
     ------
@@ -333,9 +333,9 @@ class VoxelErosion(TimeSteppedFilter):
 
     Each time step advances the water by ``time_step`` seconds (MAC-grid
     Navier–Stokes with a volume-of-fluid free surface, see
-    :mod:`pverosion.kernels.voxel_fluid`) and exchanges material at the
+    :mod:`pverosion.kernels.voxel.fluid`) and exchanges material at the
     water/material interface with the cohesive or cohesionless model (see
-    :mod:`pverosion.kernels.voxel_erosion`). The output is a MultiBlock of
+    :mod:`pverosion.kernels.voxel.erosion`). The output is a MultiBlock of
     the grid state (``state``) and the material's isosurface (``surface``).
     TIME_STEPS are 0..iterations; a later time continues from the cached
     state, an earlier one restarts.

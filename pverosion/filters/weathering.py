@@ -14,12 +14,12 @@ from pverosion.filters.base import (
     set_field_value,
     set_point_array,
 )
-from pverosion.kernels.mesh_evolution import REPAIR_MODES, GuardedMeshSolver
-from pverosion.kernels.normalize import SOLVER_NORMALIZATIONS
-from pverosion.kernels.orientation import ORIENTATIONS
-from pverosion.kernels.topology import EdgeTopology, edge_topology
+from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS
+from pverosion.kernels.mesh.orientation import ORIENTATIONS
+from pverosion.kernels.mesh.topology import EdgeTopology, edge_topology
+from pverosion.kernels.solver.mesh_evolution import REPAIR_MODES, GuardedMeshSolver
 from pverosion.kernels.validation import InvalidMeshError
-from pverosion.kernels.weathering import DIRECTIONS, Erodibility, WeatheringSolver
+from pverosion.kernels.weathering.model import DIRECTIONS, Erodibility, WeatheringSolver
 
 __all__ = ["MeshSolverFilter", "Weathering", "weathering_output"]
 
@@ -32,7 +32,7 @@ def weathering_output(solver: GuardedMeshSolver, source, out, *, prefix: str = "
     (cumulative displacement into the original surface, along the original
     inward normal) and, as field data, one ``<prefix>_<statistic>`` series
     per step (step 0 first), ``retries`` and ``frozen_vertices``. Used by
-    every stage built on :class:`~pverosion.kernels.mesh_evolution.GuardedMeshSolver`.
+    every stage built on :class:`~pverosion.kernels.solver.mesh_evolution.GuardedMeshSolver`.
     """
     out.ShallowCopy(source)
     points = vtkPoints()  # a new object: the shallow copy shares the input's points
@@ -63,7 +63,7 @@ def weathering_output(solver: GuardedMeshSolver, source, out, *, prefix: str = "
 
 
 class MeshSolverFilter(TimeSteppedFilter):
-    """A stage over a :class:`~pverosion.kernels.mesh_evolution.GuardedMeshSolver`, kept between updates.
+    """A stage over a :class:`~pverosion.kernels.solver.mesh_evolution.GuardedMeshSolver`, kept between updates.
 
     Subclasses build the solver in ``_new_solver(inp)`` and fill the output in
     ``_fill(solver, inp, out)``. Asking for a later time continues the cached

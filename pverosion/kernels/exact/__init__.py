@@ -1,0 +1,1 @@
+"""Exact geometry: robust predicates, triangle intersection, intersection curves, cutting triangles along them."""

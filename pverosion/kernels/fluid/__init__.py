@@ -1,0 +1,1 @@
+"""Particle water: position-based fluids colliding with a triangle mesh (Macklin & Müller 2013)."""

@@ -1,0 +1,1 @@
+"""Triangle-mesh basics: topology, orientation, geometry, Laplacian, remeshing, degenerate faces, terrain blocks."""

@@ -1,0 +1,1 @@
+"""Repair of self-intersecting meshes and Boolean operations (thesis §10.2–10.3)."""

@@ -1,0 +1,1 @@
+"""Spatial queries on triangle meshes: bucket grids of boxes, triangle indices, inside/outside by rays."""
