@@ -18,9 +18,10 @@ import pyvista as pv
 from _load import add_load_option, run
 
 import pverosion
+from pverosion.examples import data_path
 from pverosion.kernels import orient_faces, principal_curvatures
 
-DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
+DEFAULT = data_path("bunny.ply")
 
 
 def main() -> None:

@@ -27,18 +27,18 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from pathlib import Path
 
 import numpy as np
 import pyvista as pv
 from _load import add_load_option, run
 
+from pverosion.examples import data_path
 from pverosion.kernels.fluid.particle_fluid import Drain, Emitter, FluidParameters
 from pverosion.kernels.hydraulic.erosion import HydraulicSolver
 from pverosion.kernels.spatial.mesh_query import TriangleIndex, point_inside
 from pverosion.scenes.hydraulic import canyon_scene, pour_scene
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = data_path()
 PAPER_MS = {"bunny": 291.520, "canyon": 309.441}
 TARGET_MS = {"bunny": 60.0, "canyon": 150.0}
 

@@ -27,12 +27,12 @@ import argparse
 import json
 import multiprocessing
 import time
-from pathlib import Path
 
 import numpy as np
 import pyvista as pv
 from _load import add_load_option, run
 
+from pverosion.examples import data_path
 from pverosion.kernels.exact.intersection_curves import intersection_curves, trace_polylines
 from pverosion.kernels.mesh.geometry import signed_volume
 from pverosion.kernels.repair.mesh_repair import boolean_meshes, repair_intersections
@@ -45,7 +45,7 @@ from pverosion.scenes.intersection import (
     two_spheres,
 )
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = data_path()
 TWELVE_TARGET_MS = 500.0
 UNION_RATIO_TARGET = 4.0
 

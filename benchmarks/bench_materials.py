@@ -30,9 +30,10 @@ import numpy as np
 from _load import add_load_option, run
 
 import pverosion
+from pverosion.examples import data_path
 from pverosion.io import read_image
 
-DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "HeadMRVolume.mhd"
+DEFAULT = data_path("HeadMRVolume.mhd")
 THRESHOLDS = (40.0, 100.0, 160.0)
 
 

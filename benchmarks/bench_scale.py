@@ -36,11 +36,12 @@ import pyvista as pv
 from _load import add_load_option, run
 
 import pverosion
+from pverosion.examples import data_path
 from pverosion.kernels import orient_faces, principal_curvatures
 from pverosion.kernels.weathering.model import WeatheringSolver
 from pverosion.scenes.hydraulic import pour_scene
 
-DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
+DEFAULT = data_path("bunny.ply")
 TARGETS = {"curvature_ratio_vs_vtk": 0.4, "weathering_ns_per_face_1_6m": 250}
 
 

@@ -21,6 +21,7 @@ import numpy as np
 import pyvista as pv
 from _load import add_load_option, run
 
+from pverosion.examples import data_path
 from pverosion.kernels.curvature.normalize import normalize_symmetric
 from pverosion.kernels.mesh.geometry import average_edge_length
 from pverosion.kernels.mesh.laplacian import laplacian_vectors
@@ -28,7 +29,7 @@ from pverosion.kernels.mesh.orientation import orient_faces
 from pverosion.kernels.mesh.topology import edge_topology, one_ring
 from pverosion.kernels.weathering.model import WeatheringSolver, _displace
 
-DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
+DEFAULT = data_path("bunny.ply")
 
 
 def vtk_iteration(mesh: pv.PolyData, ring, edges, fixed, displacement) -> pv.PolyData:

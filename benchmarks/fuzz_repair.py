@@ -18,11 +18,11 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from pathlib import Path
 
 import manifold3d
 import numpy as np
 
+from pverosion.examples import data_path
 from pverosion.kernels.mesh.geometry import signed_volume
 from pverosion.kernels.repair.mesh_repair import (
     OPERATIONS,
@@ -33,7 +33,7 @@ from pverosion.kernels.repair.mesh_repair import (
 )
 from pverosion.scenes.intersection import fuzz_operands, fuzz_primitives
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = data_path()
 
 
 def _solid(mesh):

@@ -37,6 +37,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 
+from pverosion.examples import data_path
 from pverosion.filters.repair import repair_output
 from pverosion.io import write_atomic
 from pverosion.kernels.exact.intersection_curves import (
@@ -58,7 +59,7 @@ from pverosion.scenes.intersection import (
     two_spheres,
 )
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = data_path()
 BUNNY = DATA / "bunny.ply"
 EXACT_UNION = 10.0  # the cuboids 2 x 2 x 2 and 4 x 1 x 1 through it
 CMAP = "Set3"  # twelve distinct light colours; the curves are drawn as saturated blue dots over them

@@ -16,6 +16,7 @@ from pverosion.filters.voxel import VoxelErosion
 from pverosion.filters.weathering import Weathering
 from pverosion.kernels.fluid.particle_fluid import Drain, Emitter
 from pverosion.kernels.materials.bsp import BSPTree
+from pverosion.kernels.materials.erodibility import Erodibility
 from pverosion.kernels.materials.field import (
     BSPMaterials,
     Gradual,
@@ -23,7 +24,6 @@ from pverosion.kernels.materials.field import (
     bsp_from_volume,
 )
 from pverosion.kernels.repair.mesh_repair import DEFAULT_TOLERANCE
-from pverosion.kernels.weathering.model import Erodibility
 
 __all__ = ["boolean", "curvature", "freeze_thaw", "hydraulic_erosion", "materials_from_volume", "repair",
            "sample_materials", "shard_graph", "voxel_erosion", "weather"]

@@ -12,7 +12,7 @@ from xml.sax.saxutils import quoteattr
 import pyvista as pv
 from vtkmodules.vtkCommonCore import vtkObject
 
-from pverosion.kernels._files import atomic_path, file_mode
+from pverosion.kernels.files import atomic_path, file_mode
 
 __all__ = [
     "EXTENSIONS",

@@ -7,11 +7,13 @@ import pkgutil
 import subprocess
 import sys
 import warnings
+from pathlib import Path
 
 import pytest
 
 import pverosion.kernels
 from pverosion._moved import MOVED_MODULES
+from pverosion.examples import data_path
 
 KERNEL_MODULES = sorted(info.name for info in pkgutil.walk_packages(pverosion.kernels.__path__, "pverosion.kernels."))
 
@@ -21,7 +23,7 @@ def test_the_kernels_are_topic_subpackages():
     assert {"mesh", "spatial", "exact", "repair", "curvature", "solver", "weathering", "fluid", "hydraulic",
             "materials", "voxel", "shards"} <= packages
     flat = [name for name in KERNEL_MODULES if name.count(".") == 2 and not name.split(".")[2].startswith("_")]
-    assert flat == [f"pverosion.kernels.{n}" for n in ("curvature", "exact", "fluid", "hydraulic", "materials", "mesh",
+    assert flat == [f"pverosion.kernels.{n}" for n in ("curvature", "exact", "files", "fluid", "hydraulic", "materials", "mesh",
                                                         "random_streams", "repair", "shards", "solver", "spatial",
                                                         "tolerances", "validation", "voxel", "weathering")]
 
@@ -73,3 +75,12 @@ def test_the_package_imports_no_moved_path():
                           "--", "*.py", ":!pverosion/_moved.py", ":!tests/test_layout.py"],
                          capture_output=True, text=True, cwd=pverosion.kernels.__path__[0])
     assert out.stdout == ""
+
+
+def test_data_path_is_the_environment_folder_or_the_one_beside_the_checkout(monkeypatch, tmp_path):
+    monkeypatch.setenv("PVEROSION_DATA", str(tmp_path))
+    assert data_path("bunny.ply") == tmp_path / "bunny.ply"
+    monkeypatch.delenv("PVEROSION_DATA")
+    checkout = Path(pverosion.kernels.__file__).resolve().parents[2]
+    assert data_path() == checkout.parent / "shared" / "data"
+    assert data_path("HeadMRVolume.mhd").parent == data_path()

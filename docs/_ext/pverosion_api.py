@@ -21,8 +21,7 @@ GROUPS = (
     ("Kernels (arrays in, arrays out)", ("pverosion.kernels",)),
     ("Batch runs", ("pverosion.batch",)),
     ("Command line", ("pverosion.cli",)),
-    ("Example data and scenes", ("pverosion.examples", "pverosion.scenes.weathering", "pverosion.scenes.hydraulic",
-                                 "pverosion.scenes.voxel", "pverosion.scenes.shards", "pverosion.scenes.intersection")),
+    ("Example data and scenes", ("pverosion.examples", "pverosion.scenes", "pverosion.meshing")),
 )
 ACCESSOR = "pverosion._accessor.ErosionAccessor"
 

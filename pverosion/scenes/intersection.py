@@ -29,7 +29,7 @@ from scipy.spatial.transform import Rotation
 
 from pverosion.examples import load_rock
 from pverosion.kernels.mesh.orientation import orient_faces
-from pverosion.scenes.hydraulic import fill_holes
+from pverosion.meshing import fill_holes
 
 __all__ = ["SCENES", "combine", "crossed_tube", "cube_and_sphere", "fuzz_operands", "fuzz_primitives",
            "rotated_cuboids", "tube", "twelve_objects", "two_spheres"]

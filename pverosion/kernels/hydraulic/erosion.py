@@ -61,11 +61,11 @@ from pverosion.kernels import _vec3 as v3
 from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS, normalize_shifted
 from pverosion.kernels.curvature.operator import CurvatureTracker
 from pverosion.kernels.fluid.particle_fluid import FluidParameters, ParticleFluid, _closest_on_boundary, _over
+from pverosion.kernels.materials.erodibility import Erodibility, check_erodibility, erodibility_now
 from pverosion.kernels.mesh.geometry import average_edge_length, point_areas
 from pverosion.kernels.mesh.laplacian import laplacian_vectors
 from pverosion.kernels.mesh.topology import vertex_face_incidence
 from pverosion.kernels.solver.mesh_evolution import GuardedMeshSolver, volume_area
-from pverosion.kernels.weathering.model import Erodibility, check_erodibility, erodibility_now
 
 __all__ = ["MODELS", "STAT_NAMES", "HydraulicSolver", "ShearParameters", "nearest_particle_distance"]
 

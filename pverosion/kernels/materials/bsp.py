@@ -45,7 +45,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit, prange
 
-from pverosion.kernels._files import atomic_path
+from pverosion.kernels.files import atomic_path
 from pverosion.kernels.materials.surfaces import (
     N_PARAMS,
     PLANE,

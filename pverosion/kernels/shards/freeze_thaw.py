@@ -44,8 +44,9 @@ from scipy.sparse.csgraph import connected_components
 
 from pverosion.kernels.random_streams import stream_state
 from pverosion.kernels.shards.graph import ShardGraph
+from pverosion.kernels.solver.protocol import SolverLoop
 
-__all__ = ["AIR", "CORE", "SOLID", "FreezeThawParameters", "FreezeThawSimulation", "PathRecord"]
+__all__ = ["AIR", "CORE", "SOLID", "FreezeThawParameters", "FreezeThawSimulation", "FreezeThawSolver", "PathRecord"]
 
 SOLID, AIR, CORE = 0, 1, 2
 """Cell states."""
@@ -727,3 +728,61 @@ def _flow_weight(i, j, link_cells, state, centroid, gravity, life, rho):
     if not f_g > 0.0:
         return 0.0
     return f_g * (1.0 - life[j] * rho[j])
+
+
+class FreezeThawSolver(SolverLoop):
+    """Freeze–thaw weathering as a time-stepped solver: every step runs ``paths_per_step`` water paths.
+
+    Parameters
+    ----------
+    simulation : FreezeThawSimulation
+        The run it advances (kept as :attr:`simulation`).
+    paths_per_step : int, default: 100
+        Water paths per step (>= 1).
+    record_paths : bool, default: False
+        Keep the paths of the last step run up to a checkpoint of :meth:`run` (``outputs`` and its last
+        step) as :attr:`record`.
+
+    Attributes
+    ----------
+    record : PathRecord or None
+        Paths of the last checkpoint step (None before one, or without ``record_paths``).
+    """
+
+    STAT_NAMES = ("paths", "breaks", "solid_cells")
+    """Per-step statistics: paths run, breaks of solid links and solid cells, all so far."""
+
+    def __init__(self, simulation: FreezeThawSimulation, *, paths_per_step: int = 100,
+                 record_paths: bool = False) -> None:
+        if int(paths_per_step) != paths_per_step or paths_per_step < 1:
+            raise ValueError(f"paths_per_step must be an integer >= 1; got {paths_per_step!r}")
+        self.simulation = simulation
+        self.paths_per_step = int(paths_per_step)
+        self.record_paths = bool(record_paths)
+        self.record: PathRecord | None = None
+        self.step_count = 0
+        self._stats: list[tuple] = []
+        self._record_totals()
+
+    def _record_totals(self) -> None:
+        sim = self.simulation
+        self._record({"paths": sim.paths, "breaks": sim.n_breaks, "solid_cells": int(sim.solid.sum())})
+
+    def step(self) -> None:
+        """Run one step's water paths."""
+        self._advance(False)
+
+    def _advance(self, checkpoint: bool) -> bool:
+        record = self.simulation.run(self.paths_per_step, record=self.record_paths and checkpoint)
+        if record is not None:
+            self.record = record
+        self.step_count += 1
+        self._record_totals()
+        return True
+
+    @property
+    def state(self) -> dict[str, np.ndarray]:
+        """Cell ``state`` (n_cells,) int8 (SOLID, AIR, CORE), link ``life`` (n_links,) and ``exterior`` (n_links,) bool."""
+        sim = self.simulation
+        return {"state": sim.state, "life": sim.life, "exterior": sim.exterior}
+

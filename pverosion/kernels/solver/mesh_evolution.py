@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -55,6 +54,7 @@ from pverosion.kernels.mesh.geometry import vertex_normals
 from pverosion.kernels.mesh.orientation import ORIENTATIONS, orient_faces
 from pverosion.kernels.mesh.remesh import collapse_short_edges, short_edge_candidates
 from pverosion.kernels.mesh.topology import edge_topology, one_ring
+from pverosion.kernels.solver.protocol import SolverLoop
 from pverosion.kernels.validation import as_triangle_mesh
 
 __all__ = ["REPAIR_MODES", "GuardedMeshSolver", "volume_area"]
@@ -113,7 +113,7 @@ class _State:
     extra: Any = None
 
 
-class GuardedMeshSolver:
+class GuardedMeshSolver(SolverLoop):
     """Base of the vertex-displacement stages: mesh state, improvement, self-intersection guard.
 
     Parameters
@@ -337,44 +337,18 @@ class GuardedMeshSolver:
 
     # -- running -------------------------------------------------------------------------
 
-    def run(
-        self,
-        iterations: int,
-        *,
-        outputs: Iterable[int] = (),
-        callback: Callable[[Any], None] | None = None,
-        on_step: Callable[[Any], None] | None = None,
-    ) -> None:
-        """Advance ``iterations`` steps.
+    def step(self) -> None:
+        """Advance one step that the guard accepts (a rejected step is undone and tried again, shorter)."""
+        self.run(1)
 
-        Parameters
-        ----------
-        iterations : int
-            Number of steps to add (>= 0).
-        outputs : iterable of int
-            Step numbers (absolute times) at which ``callback`` is called. The
-            guard checks the mesh before each of them, so every state handed
-            out is free of new self-intersections. The last step is always
-            checked.
-        callback : callable, optional
-            ``callback(solver)`` at every output step.
-        on_step : callable, optional
-            ``on_step(solver)`` after every accepted step (progress reports; the front ends draw
-            their progress bars from it with :meth:`progress_postfix`).
-        """
-        if int(iterations) != iterations or iterations < 0:
-            raise ValueError(f"iterations must be an integer >= 0; got {iterations!r}")
-        target = self.step_count + int(iterations)
-        wanted = {int(s) for s in outputs}
-        while self.step_count < target:
-            self._step()
-            at_output = self.step_count in wanted
-            if self._due(at_output or self.step_count == target) and not self._accept():
-                continue
-            if on_step is not None:
-                on_step(self)
-            if at_output and callback is not None:
-                callback(self)
+    def _advance(self, checkpoint: bool) -> bool:
+        self._step()
+        return not (self._due(checkpoint) and not self._accept())
+
+    @property
+    def state(self) -> dict[str, np.ndarray]:
+        """The current mesh (``points`` (V', 3), ``faces`` (F', 3)), input ``ids`` (V',) and ``displacement`` (V', 3)."""
+        return {"points": self.points, "faces": self.faces, "ids": self.ids, "displacement": self.displacement}
 
     def _due(self, forced: bool) -> bool:
         if not self.check_every:
@@ -457,9 +431,3 @@ class GuardedMeshSolver:
     def frozen(self) -> int:
         """Number of current vertices frozen by the self-intersection guard."""
         return int(np.count_nonzero(self._scale[self.ids] == 0.0))
-
-    @property
-    def statistics(self) -> dict[str, np.ndarray]:
-        """Per-step statistics, one array per name of :attr:`STAT_NAMES` (step 0 first)."""
-        table = np.array(self._stats, dtype=np.float64).reshape(-1, len(self.STAT_NAMES))
-        return {name: table[:, k] for k, name in enumerate(self.STAT_NAMES)}

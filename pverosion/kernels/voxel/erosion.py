@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
+from pverosion.kernels.solver.protocol import SolverLoop
 from pverosion.kernels.voxel.fluid import VoxelFluid, cell_velocity
 
 __all__ = ["MODELS", "WET_FRACTION", "ErosionParameters", "VoxelErosionSolver", "erosion_step"]
@@ -328,7 +329,7 @@ def erosion_step(
     return {"eroded": float(eroded), "deposited": float(deposited), "saturated": int(saturated)}
 
 
-class VoxelErosionSolver:
+class VoxelErosionSolver(SolverLoop):
     """Water flow (:class:`~pverosion.kernels.voxel.fluid.VoxelFluid`) eroding and depositing material.
 
     Parameters
@@ -343,6 +344,8 @@ class VoxelErosionSolver:
         Per-cell erosion scale (1 / hardness); 1 everywhere by default.
     params : ErosionParameters, optional
         Erosion–deposition model and constants.
+    time_step : float, default: 0.01
+        Time per step (s) when :meth:`step` is given none.
     **fluid_options
         Passed to :class:`~pverosion.kernels.voxel.fluid.VoxelFluid` (``source``,
         ``source_velocity``, ``drain``, ``viscosity``, ``tolerance``, ``cfl``, ...).
@@ -358,8 +361,12 @@ class VoxelErosionSolver:
         Solid + dissolved material at the start.
     """
 
+    STAT_NAMES = ("solid", "dissolved", "drained", "eroded", "deposited", "water", "substeps", "iterations",
+                  "divergence")
+    """Per-step statistics (:attr:`statistics`): material and water totals, and the step's figures."""
+
     def __init__(self, amount, water, *, spacing: float, erodibility=None, params: ErosionParameters | None = None,
-                 **fluid_options):
+                 time_step: float = 0.01, **fluid_options):
         amount = np.asarray(amount, dtype=np.float64)
         if amount.ndim != 3:
             raise ValueError(f"amount must be a 3-D array (nx, ny, nz); got shape {amount.shape}")
@@ -378,7 +385,19 @@ class VoxelErosionSolver:
         self.fluid = VoxelFluid(self.amount > 0.0, water, spacing=spacing, **fluid_options)
         self.drained_material = 0.0
         self.initial_material = self.material_total()
+        self.time_step = float(time_step)
         self.step_count = 0
+        self._stats: list[tuple] = []
+        self._record_totals({})
+
+    def _record_totals(self, figures: dict) -> None:
+        self._record({**figures, "solid": float(self.amount.sum()), "dissolved": float(self.fluid.material.sum()),
+                      "drained": self.drained_material, "water": float(self.fluid.water.sum())})
+
+    @property
+    def state(self) -> dict[str, np.ndarray]:
+        """Material ``amount``, ``water`` and ``dissolved`` material per cell, each (nx, ny, nz)."""
+        return {"amount": self.amount, "water": self.fluid.water, "dissolved": self.fluid.material}
 
     def material_total(self) -> float:
         """Solid + dissolved material now (cell volumes)."""
@@ -389,8 +408,9 @@ class VoxelErosionSolver:
         total = self.material_total() + self.drained_material
         return abs(total - self.initial_material) / max(self.initial_material, 1e-300)
 
-    def step(self, dt: float) -> dict[str, float]:
-        """Advance the water by ``dt`` then exchange material; return the step's figures."""
+    def step(self, dt: float | None = None) -> dict[str, float]:
+        """Advance the water by ``dt`` (:attr:`time_step` when None) then exchange material; return the step's figures."""
+        dt = self.time_step if dt is None else dt
         fluid = self.fluid
         info = fluid.step(dt)
         self.drained_material += info.drained_material
@@ -408,4 +428,5 @@ class VoxelErosionSolver:
         figures.update(substeps=info.substeps, iterations=info.iterations, divergence=info.divergence,
                        max_speed=info.max_speed, inflow=info.inflow, outflow=info.outflow,
                        drained_material=info.drained_material)
+        self._record_totals(figures)
         return figures

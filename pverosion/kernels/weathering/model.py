@@ -23,7 +23,6 @@ which is why it is periodic rather than per step.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 
 import numpy as np
 from numba import njit
@@ -31,13 +30,13 @@ from numba import njit
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._threads import for_ranges
 from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS, normalize_symmetric
-from pverosion.kernels.materials.field import MaterialField
+from pverosion.kernels.materials.erodibility import Erodibility, check_erodibility, erodibility_now
 from pverosion.kernels.mesh.geometry import average_edge_length
 from pverosion.kernels.mesh.laplacian import laplacian_vectors
 from pverosion.kernels.solver.mesh_evolution import GuardedMeshSolver, volume_area
 from pverosion.kernels.tolerances import FLAT_CURVATURE
 
-__all__ = ["DIRECTIONS", "STAT_NAMES", "WeatheringSolver", "check_erodibility", "erodibility_now"]
+__all__ = ["DIRECTIONS", "STAT_NAMES", "WeatheringSolver"]
 
 DIRECTIONS = ("laplacian", "normal")
 """Accepted values of the ``direction`` option."""
@@ -46,7 +45,6 @@ STAT_NAMES = ("volume", "area", "mean_abs_curvature", "max_abs_curvature", "erod
 """Per-step statistics recorded by :class:`WeatheringSolver` (one row per step, step 0 first)."""
 
 
-Erodibility = np.ndarray | Callable[[np.ndarray], np.ndarray] | MaterialField | None
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -204,29 +202,3 @@ class WeatheringSolver(GuardedMeshSolver):
         self.step_count += 1
         self._stats.append(self._row(h))
         self._lap("improvement", clock)
-
-
-def check_erodibility(erodibility: Erodibility, n_vertices: int):
-    """Validated erodibility: None, a callable, a MaterialField, or a copy of an array (V,) of values >= 0."""
-    if erodibility is None or callable(erodibility) or isinstance(erodibility, MaterialField):
-        return erodibility
-    values = np.asarray(erodibility, dtype=np.float64)
-    if values.shape != (n_vertices,):
-        raise ValueError(f"erodibility must have shape ({n_vertices},) (one value per vertex); got {values.shape}")
-    if not np.all(np.isfinite(values)) or np.any(values < 0):
-        raise ValueError("erodibility must be finite and non-negative")
-    return values.copy()
-
-
-def erodibility_now(erodibility: Erodibility, points: np.ndarray, ids: np.ndarray) -> np.ndarray:
-    """Erodibility (V',) of the current vertices ``points`` (V', 3) with input indices ``ids`` (V',)."""
-    if isinstance(erodibility, MaterialField):
-        return erodibility.erodibility(points, ids=ids)
-    if callable(erodibility):
-        values = np.asarray(erodibility(points.copy()), dtype=np.float64)
-        if values.shape != (len(points),):
-            raise ValueError(f"erodibility callable must return shape ({len(points)},); got {values.shape}")
-        if not np.all(np.isfinite(values)) or np.any(values < 0):
-            raise ValueError("erodibility callable returned negative or non-finite values")
-        return values
-    return erodibility[ids]
