@@ -45,7 +45,14 @@ from scipy.sparse.csgraph import connected_components
 
 from pverosion.kernels.mesh.topology import halfedge_twins
 from pverosion.kernels.shards.voronoi import MAX_FACE_VERTICES, MAX_FACES, cell_polygons, seed_grid
-from pverosion.kernels.spatial.mesh_query import _needle, overlap_grid, point_inside, segment_crossings, unit_normals
+from pverosion.kernels.spatial.mesh_query import (
+    _needle,
+    box_items,
+    overlap_grid,
+    point_inside,
+    segment_crossings,
+    unit_normals,
+)
 from pverosion.kernels.validation import as_triangle_mesh
 
 __all__ = ["ShardGraph", "build_shards"]
@@ -273,32 +280,12 @@ def _near_triangles(verts, count, nf, planes, offsets, bmin, bmax, points, faces
     vertices outside, or when all cell vertices are on one side of its plane (unless it is a needle), each
     by more than ``margin``.
     """
-    i0 = min(max(int((bmin[0] - lo[0]) / size), 0), dims[0] - 1)
-    j0 = min(max(int((bmin[1] - lo[1]) / size), 0), dims[1] - 1)
-    k0 = min(max(int((bmin[2] - lo[2]) / size), 0), dims[2] - 1)
-    i1 = min(max(int((bmax[0] - lo[0]) / size), 0), dims[0] - 1)
-    j1 = min(max(int((bmax[1] - lo[1]) / size), 0), dims[1] - 1)
-    k1 = min(max(int((bmax[2] - lo[2]) / size), 0), dims[2] - 1)
-    n = 0
-    for k in range(k0, k1 + 1):
-        for j in range(j0, j1 + 1):
-            for i in range(i0, i1 + 1):
-                b = i + dims[0] * (j + dims[1] * k)
-                n += start[b + 1] - start[b]
-    found = np.empty(n, np.int64)
-    if n == 0:
+    found = box_items(bmin, bmax, lo, size, dims, start, items, True)
+    if found.size == 0:
         return found
-    n = 0
-    for k in range(k0, k1 + 1):
-        for j in range(j0, j1 + 1):
-            for i in range(i0, i1 + 1):
-                b = i + dims[0] * (j + dims[1] * k)
-                for q in range(start[b], start[b + 1]):
-                    found[n] = items[q]
-                    n += 1
     found.sort()
     kept = 0
-    for q in range(n):
+    for q in range(found.size):
         t = found[q]
         if (q > 0 and t == found[q - 1]) or not _may_meet(t, verts, count, nf, planes, offsets, bmin, bmax, points,
                                                          faces, normals, margin):

@@ -18,7 +18,7 @@ from numba import njit
 
 from pverosion.kernels.exact.predicates import orient2d
 
-__all__ = ["TriangleIndex", "box_triangles", "bucket_boxes", "overlap_grid", "point_inside", "ray_winding",
+__all__ = ["TriangleIndex", "box_items", "box_triangles", "bucket_boxes", "overlap_grid", "point_inside", "ray_winding",
            "ray_winding_without", "segment_crossings", "unit_normals"]
 
 
@@ -310,14 +310,20 @@ def ray_winding_without(p, points, faces, lo, size, dims, start2, items2, source
 
 
 @njit(cache=True)
-def box_triangles(lo_box, hi_box, points, faces, lo, size, dims, start, items):
-    """Sorted indices of the triangles whose bounding box meets the box [lo_box, hi_box]."""
-    i0 = max(int((lo_box[0] - lo[0]) / size), 0)
-    j0 = max(int((lo_box[1] - lo[1]) / size), 0)
-    k0 = max(int((lo_box[2] - lo[2]) / size), 0)
-    i1 = min(int((hi_box[0] - lo[0]) / size), dims[0] - 1)
-    j1 = min(int((hi_box[1] - lo[1]) / size), dims[1] - 1)
-    k1 = min(int((hi_box[2] - lo[2]) / size), dims[2] - 1)
+def box_items(lo_box, hi_box, lo, size, dims, start, items, clamp):
+    """Items (unsorted, repeated where they fill several cells) in the cells of a :func:`bucket_boxes` grid that
+    the box [lo_box, hi_box] meets; the grid starts at ``lo`` with cells of edge ``size``.
+
+    With ``clamp``, a box beyond the grid takes the cells at its edge (the grid's last cells hold what lies
+    beyond it too); without, it meets no cell.
+    """
+    top = 0 if clamp else -1
+    i0 = min(max(int((lo_box[0] - lo[0]) / size), 0), dims[0] - 1 if clamp else dims[0])
+    j0 = min(max(int((lo_box[1] - lo[1]) / size), 0), dims[1] - 1 if clamp else dims[1])
+    k0 = min(max(int((lo_box[2] - lo[2]) / size), 0), dims[2] - 1 if clamp else dims[2])
+    i1 = min(max(int((hi_box[0] - lo[0]) / size), top), dims[0] - 1)
+    j1 = min(max(int((hi_box[1] - lo[1]) / size), top), dims[1] - 1)
+    k1 = min(max(int((hi_box[2] - lo[2]) / size), top), dims[2] - 1)
     n = 0
     for k in range(k0, k1 + 1):
         for j in range(j0, j1 + 1):
@@ -333,7 +339,13 @@ def box_triangles(lo_box, hi_box, points, faces, lo, size, dims, start, items):
                 for q in range(start[b], start[b + 1]):
                     found[n] = items[q]
                     n += 1
-    found = np.unique(found)
+    return found
+
+
+@njit(cache=True)
+def box_triangles(lo_box, hi_box, points, faces, lo, size, dims, start, items):
+    """Sorted indices of the triangles whose bounding box meets the box [lo_box, hi_box]."""
+    found = np.unique(box_items(lo_box, hi_box, lo, size, dims, start, items, False))
     keep = np.ones(found.size, np.bool_)
     for q in range(found.size):
         t = found[q]
