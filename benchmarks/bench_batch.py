@@ -19,10 +19,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from _load import add_load_option, run
+
 from pverosion.batch import load_scenario, run_batch
 from pverosion.batch.job import warm_up
-
-from _load import add_load_option, run
 
 SCENARIO = Path(__file__).resolve().parents[1] / "pipelines" / "batch_rocks.toml"
 

@@ -42,16 +42,16 @@ from pathlib import Path
 
 import numpy as np
 import pyvista as pv
-
-from pverosion._stages import STAGE_INDEX
-from pverosion.hydraulic_scenes import pour_scene
-from pverosion.intersection_scenes import two_spheres
-from pverosion.voxel_scenes import meander_grid
-
 from _load import add_load_option, run
 
+from pverosion._stages import STAGE_INDEX
+from pverosion.examples import data_path
+from pverosion.scenes.hydraulic import pour_scene
+from pverosion.scenes.intersection import two_spheres
+from pverosion.scenes.voxel import meander_grid
+
 ROOT = Path(__file__).resolve().parents[1]
-DEFAULT = ROOT.parent / "shared" / "data" / "bunny.ply"
+DEFAULT = data_path("bunny.ply")
 COMPILED = re.compile(r"compiled (\d+) functions in ([\d.]+) s")
 TARGETS_S = {"curvature_cold": 8.0, "curvature_warm": 2.0, "weather_cold": 10.0, "boolean_cold": 15.0,
              "import": 0.7, "help": 0.7}

@@ -15,13 +15,13 @@ from pathlib import Path
 
 import numpy as np
 import pyvista as pv
-
-import pverosion
-from pverosion.kernels import orient_faces, principal_curvatures
-
 from _load import add_load_option, run
 
-DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
+import pverosion
+from pverosion.examples import data_path
+from pverosion.kernels import orient_faces, principal_curvatures
+
+DEFAULT = data_path("bunny.ply")
 
 
 def main() -> None:

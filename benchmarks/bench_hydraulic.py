@@ -27,19 +27,18 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from pathlib import Path
 
 import numpy as np
 import pyvista as pv
-
-from pverosion.hydraulic_scenes import canyon_scene, pour_scene
-from pverosion.kernels.hydraulic_erosion import HydraulicSolver
-from pverosion.kernels.mesh_query import TriangleIndex, point_inside
-from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters
-
 from _load import add_load_option, run
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+from pverosion.examples import data_path
+from pverosion.kernels.fluid.particle_fluid import Drain, Emitter, FluidParameters
+from pverosion.kernels.hydraulic.erosion import HydraulicSolver
+from pverosion.kernels.spatial.mesh_query import TriangleIndex, point_inside
+from pverosion.scenes.hydraulic import canyon_scene, pour_scene
+
+DATA = data_path()
 PAPER_MS = {"bunny": 291.520, "canyon": 309.441}
 TARGET_MS = {"bunny": 60.0, "canyon": 150.0}
 
@@ -61,7 +60,7 @@ def bunny_tank(n_particles: int = 17_700):
 
     Returns
     -------
-    scene : pverosion.hydraulic_scenes.HydraulicScene
+    scene : pverosion.scenes.hydraulic.HydraulicScene
         ``pour_scene`` of the scan (holes closed), y up.
     block : numpy.ndarray, shape (n_particles, 3)
         Particle positions of a column of water over the model's middle.

@@ -1,6 +1,6 @@
 """Intersection detection, repair and Booleans: milliseconds per scene, against manifold3d and VTK in the same run.
 
-Scenes (:mod:`pverosion.intersection_scenes`, the thesis' chapter 10):
+Scenes (:mod:`pverosion.scenes.intersection`, the thesis' chapter 10):
 
 - two spheres (Figure 10.11), the rotated cuboids at n = 16 (Figure 10.12),
   the cube and sphere (Figure 10.15): two-mesh unions, timed for pverosion
@@ -27,12 +27,16 @@ import argparse
 import json
 import multiprocessing
 import time
-from pathlib import Path
 
 import numpy as np
 import pyvista as pv
+from _load import add_load_option, run
 
-from pverosion.intersection_scenes import (
+from pverosion.examples import data_path
+from pverosion.kernels.exact.intersection_curves import intersection_curves, trace_polylines
+from pverosion.kernels.mesh.geometry import signed_volume
+from pverosion.kernels.repair.mesh_repair import boolean_meshes, repair_intersections
+from pverosion.scenes.intersection import (
     combine,
     crossed_tube,
     cube_and_sphere,
@@ -40,13 +44,8 @@ from pverosion.intersection_scenes import (
     twelve_objects,
     two_spheres,
 )
-from pverosion.kernels.geometry import signed_volume
-from pverosion.kernels.intersection_curves import intersection_curves, trace_polylines
-from pverosion.kernels.mesh_repair import boolean_meshes, repair_intersections
 
-from _load import add_load_option, run
-
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = data_path()
 TWELVE_TARGET_MS = 500.0
 UNION_RATIO_TARGET = 4.0
 

@@ -27,13 +27,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-import pverosion
-from pverosion.io import read_image
-
 from _load import add_load_option, run
 
-DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "HeadMRVolume.mhd"
+import pverosion
+from pverosion.examples import data_path
+from pverosion.io import read_image
+
+DEFAULT = data_path("HeadMRVolume.mhd")
 THRESHOLDS = (40.0, 100.0, 160.0)
 
 

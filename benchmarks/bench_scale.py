@@ -10,7 +10,7 @@ its peak resident memory is its own) and prints, for that size:
   mesh in the same run; medians of ``--repeat`` interleaved calls, ns per face
   and the ratio to VTK;
 - weathering: mean wall time of one iteration over ``--steps`` steps of
-  :class:`~pverosion.kernels.weathering.WeatheringSolver` with its defaults
+  :class:`~pverosion.kernels.weathering.model.WeatheringSolver` with its defaults
   (the self-intersection guard every 10 steps included), ns per face;
 - ``peak_rss_mib``: the process's peak resident memory.
 
@@ -33,15 +33,15 @@ from pathlib import Path
 
 import numpy as np
 import pyvista as pv
-
-import pverosion
-from pverosion.hydraulic_scenes import pour_scene
-from pverosion.kernels import orient_faces, principal_curvatures
-from pverosion.kernels.weathering import WeatheringSolver
-
 from _load import add_load_option, run
 
-DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
+import pverosion
+from pverosion.examples import data_path
+from pverosion.kernels import orient_faces, principal_curvatures
+from pverosion.kernels.weathering.model import WeatheringSolver
+from pverosion.scenes.hydraulic import pour_scene
+
+DEFAULT = data_path("bunny.ply")
 TARGETS = {"curvature_ratio_vs_vtk": 0.4, "weathering_ns_per_face_1_6m": 250}
 
 

@@ -18,13 +18,13 @@ import json
 import statistics
 import time
 
-from pverosion.filters.base import polydata_triangles
-from pverosion.kernels.freeze_thaw import FreezeThawSimulation
-from pverosion.kernels.seed_patterns import inside_mesh, uniform_seeds
-from pverosion.kernels.shards import build_shards
-from pverosion.shard_scenes import hill_cone
-
 from _load import add_load_option, run
+
+from pverosion.filters.base import polydata_triangles
+from pverosion.kernels.shards.freeze_thaw import FreezeThawSimulation
+from pverosion.kernels.shards.graph import build_shards
+from pverosion.kernels.shards.seed_patterns import inside_mesh, uniform_seeds
+from pverosion.scenes.shards import hill_cone
 
 PAPER = {  # cells: (interior links, exterior links, generation s, ms per path)
     100: (504, 123, 0.015, 0.245),

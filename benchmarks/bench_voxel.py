@@ -21,12 +21,11 @@ import time
 
 import numpy as np
 import pyvista as pv
+from _load import add_load_option, run
 
 from pverosion.filters.voxel import extract_material_surface, voxel_grid, voxel_solver
-from pverosion.kernels.voxel_fluid import ADVECTION_SCHEMES
-from pverosion.voxel_scenes import meander_grid
-
-from _load import add_load_option, run
+from pverosion.kernels.voxel.fluid import ADVECTION_SCHEMES
+from pverosion.scenes.voxel import meander_grid
 
 
 def _steps(scheme: str, n: int, dt: float) -> dict:

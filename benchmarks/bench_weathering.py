@@ -19,17 +19,17 @@ from pathlib import Path
 
 import numpy as np
 import pyvista as pv
-
-from pverosion.kernels.geometry import average_edge_length
-from pverosion.kernels.laplacian import laplacian_vectors
-from pverosion.kernels.normalize import normalize_symmetric
-from pverosion.kernels.orientation import orient_faces
-from pverosion.kernels.topology import edge_topology, one_ring
-from pverosion.kernels.weathering import WeatheringSolver, _displace
-
 from _load import add_load_option, run
 
-DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
+from pverosion.examples import data_path
+from pverosion.kernels.curvature.normalize import normalize_symmetric
+from pverosion.kernels.mesh.geometry import average_edge_length
+from pverosion.kernels.mesh.laplacian import laplacian_vectors
+from pverosion.kernels.mesh.orientation import orient_faces
+from pverosion.kernels.mesh.topology import edge_topology, one_ring
+from pverosion.kernels.weathering.model import WeatheringSolver, _displace
+
+DEFAULT = data_path("bunny.ply")
 
 
 def vtk_iteration(mesh: pv.PolyData, ring, edges, fixed, displacement) -> pv.PolyData:

@@ -5,7 +5,7 @@ two rigid copies of small shapes and of the bunny (``../shared/data/bunny.ply``,
 decimated, holes filled, when present), half of the copies on a grid of exact
 moves (shared planes, edges, vertices; touching and nested parts), and repaired
 soups of three overlapping parts. Every case must give a closed, oriented
-2-manifold without self-intersections (:func:`~pverosion.kernels.mesh_repair.mesh_problems`
+2-manifold without self-intersections (:func:`~pverosion.kernels.repair.mesh_repair.mesh_problems`
 finds nothing) whose volume is manifold3d's within ``--rtol``, or raise
 ``RepairError``; faces overlapping in a common plane are cut like any others. Failures are listed by case number
 (rerun one with ``--first N --cases 1``).
@@ -18,22 +18,22 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from pathlib import Path
 
 import manifold3d
 import numpy as np
 
-from pverosion.intersection_scenes import fuzz_operands, fuzz_primitives
-from pverosion.kernels.geometry import signed_volume
-from pverosion.kernels.mesh_repair import (
+from pverosion.examples import data_path
+from pverosion.kernels.mesh.geometry import signed_volume
+from pverosion.kernels.repair.mesh_repair import (
     OPERATIONS,
     RepairError,
     boolean_meshes,
     mesh_problems,
     repair_intersections,
 )
+from pverosion.scenes.intersection import fuzz_operands, fuzz_primitives
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = data_path()
 
 
 def _solid(mesh):

@@ -9,16 +9,13 @@ inward-wound faces, which are turned outward first. A procedural boulder otherwi
 """
 
 # %%
-import os
-from pathlib import Path
-
 import numpy as np
 import pyvista as pv
 
 import pverosion
-from pverosion.examples import load_rock
+from pverosion.examples import data_path, load_rock
 
-DATA = Path(os.environ.get("PVEROSION_DATA", "../shared/data"))  # the scans, relative to the repository
+DATA = data_path()  # the real scans ($PVEROSION_DATA, else ../shared/data)
 scan = DATA / "bunny.ply"
 mesh = pv.read(scan) if scan.exists() else load_rock(subdivisions=5, seed=3)
 out = pverosion.curvature(mesh)  # or mesh.erosion.curvature()

@@ -3,7 +3,7 @@ Pour water on a model
 =====================
 
 A particle fluid poured from a disc emitter flows over a closed mesh, and the surface erodes
-where the water touches it. :func:`pverosion.hydraulic_scenes.pour_scene` sets up the emitter
+where the water touches it. :func:`pverosion.scenes.hydraulic.pour_scene` sets up the emitter
 over the model, a drain plane under it and the particle size; here on a procedural rock.
 """
 
@@ -13,7 +13,7 @@ import os
 import pyvista as pv
 
 import pverosion
-from pverosion.hydraulic_scenes import pour_scene
+from pverosion.scenes.hydraulic import pour_scene
 
 QUICK = os.environ.get("PVEROSION_QUICK") == "1"  # set by the documentation build
 scene = pour_scene()  # pour_scene(mesh=pv.read(...)) for your own model

@@ -17,7 +17,7 @@ import numpy as np
 import pyvista as pv
 
 import pverosion
-from pverosion.voxel_scenes import meander_grid
+from pverosion.scenes.voxel import meander_grid
 
 QUICK = os.environ.get("PVEROSION_QUICK") == "1"  # set by the documentation build
 shape = (64, 32, 24) if QUICK else (128, 64, 64)

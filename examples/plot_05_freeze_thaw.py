@@ -14,7 +14,7 @@ import os
 import pyvista as pv
 
 import pverosion
-from pverosion.shard_scenes import hill_cone
+from pverosion.scenes.shards import hill_cone
 
 QUICK = os.environ.get("PVEROSION_QUICK") == "1"  # set by the documentation build
 hill = hill_cone()

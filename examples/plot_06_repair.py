@@ -11,7 +11,7 @@ input's winding number is at least 1). The curves are marked in ``on_intersectio
 import pyvista as pv
 
 import pverosion
-from pverosion.intersection_scenes import crossed_tube
+from pverosion.scenes.intersection import crossed_tube
 
 tube = crossed_tube(n_around=80, n_tube=12)  # a tube bent into a figure eight that passes through itself
 fixed = pverosion.repair(tube, improve=True)

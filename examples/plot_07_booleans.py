@@ -10,7 +10,7 @@ Each output face remembers the input it comes from (``source_mesh``: 0 for A, 1 
 import pyvista as pv
 
 import pverosion
-from pverosion.intersection_scenes import cube_and_sphere
+from pverosion.scenes.intersection import cube_and_sphere
 
 cube, sphere = cube_and_sphere()
 operations = ("union", "intersection", "difference", "reverse_difference")

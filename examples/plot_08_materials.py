@@ -10,16 +10,15 @@ is present, nested procedural blobs otherwise.
 """
 
 # %%
-import os
-from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 import pyvista as pv
 
 import pverosion
+from pverosion.examples import data_path
 
-DATA = Path(os.environ.get("PVEROSION_DATA", "../shared/data"))  # the scans, relative to the repository
+DATA = data_path()  # the real scans ($PVEROSION_DATA, else ../shared/data)
 if (DATA / "HeadMRVolume.mhd").exists():
     volume, thresholds = pv.read(DATA / "HeadMRVolume.mhd"), [40, 100, 160]
 else:

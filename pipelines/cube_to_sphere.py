@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pverosion.scenes import cube_to_sphere
+from pverosion.scenes.weathering import cube_to_sphere
 
 
 def main() -> None:

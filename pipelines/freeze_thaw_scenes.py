@@ -14,12 +14,13 @@ from pathlib import Path
 
 import pyvista as pv
 
+from pverosion.examples import data_path
 from pverosion.filters import FreezeThaw
 from pverosion.io import TimeSeriesWriter
 from pverosion.plotting import render_strip
-from pverosion.shard_scenes import SCENES, ridge_scene
+from pverosion.scenes.shards import SCENES, ridge_scene
 
-DEM = Path(__file__).resolve().parents[2] / "shared" / "data" / "SainteHelens.dem"
+DEM = data_path("SainteHelens.dem")
 
 
 def run_scene(name: str, build, out: Path) -> None:

@@ -19,13 +19,14 @@ from pathlib import Path
 import numpy as np
 import pyvista as pv
 
+from pverosion.examples import data_path
 from pverosion.filters import HydraulicErosion
-from pverosion.hydraulic_scenes import canyon_scene, lake_scene, pour_scene, river_scene
 from pverosion.io import TimeSeriesWriter
-from pverosion.kernels.overhangs import overhanging_vertices
+from pverosion.kernels.hydraulic.overhangs import overhanging_vertices
 from pverosion.plotting import render_strip
+from pverosion.scenes.hydraulic import canyon_scene, lake_scene, pour_scene, river_scene
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = data_path()
 
 # scene -> (builder, iterations, filter options)
 SCENES = {

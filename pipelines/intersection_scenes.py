@@ -3,8 +3,8 @@ into their union (Figure 10.11), the rotated cuboids 2:2:2 and 4:1:1 at growing 
 10.1), a self-intersecting tube (Figure 10.14), the four Booleans of a cube and a sphere (Figure 10.15) and twelve
 overlapping objects repaired at once (Figure 10.13).
 
-For each scene: builds the inputs (:mod:`pverosion.intersection_scenes`), finds the intersection curves, repairs
-them or does the Booleans (:mod:`pverosion.kernels.mesh_repair`) and writes under <out>/:
+For each scene: builds the inputs (:mod:`pverosion.scenes.intersection`), finds the intersection curves, repairs
+them or does the Booleans (:mod:`pverosion.kernels.repair.mesh_repair`) and writes under <out>/:
 
 - <scene>_input.vtp: the input(s) put together, cell data ``source_mesh`` (which object a face comes from);
 - <scene>_curves.vtp: the intersection curves as VTK polylines;
@@ -37,8 +37,20 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 
+from pverosion.examples import data_path
 from pverosion.filters.repair import repair_output
-from pverosion.intersection_scenes import (
+from pverosion.io import write_atomic
+from pverosion.kernels.exact.intersection_curves import (
+    IntersectionCurves,
+    intersection_curves,
+    trace_polylines,
+    unique_rows,
+)
+from pverosion.kernels.mesh.geometry import signed_volume
+from pverosion.kernels.mesh.topology import boundary_edges
+from pverosion.kernels.repair.mesh_repair import OPERATIONS, RepairResult, boolean_meshes, repair_intersections
+from pverosion.plotting import render_strip
+from pverosion.scenes.intersection import (
     combine,
     crossed_tube,
     cube_and_sphere,
@@ -46,14 +58,8 @@ from pverosion.intersection_scenes import (
     twelve_objects,
     two_spheres,
 )
-from pverosion.io import write_atomic
-from pverosion.kernels.geometry import signed_volume
-from pverosion.kernels.intersection_curves import IntersectionCurves, intersection_curves, trace_polylines, unique_rows
-from pverosion.kernels.mesh_repair import OPERATIONS, RepairResult, boolean_meshes, repair_intersections
-from pverosion.kernels.topology import boundary_edges
-from pverosion.plotting import render_strip
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = data_path()
 BUNNY = DATA / "bunny.ply"
 EXACT_UNION = 10.0  # the cuboids 2 x 2 x 2 and 4 x 1 x 1 through it
 CMAP = "Set3"  # twelve distinct light colours; the curves are drawn as saturated blue dots over them

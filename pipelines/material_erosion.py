@@ -11,7 +11,7 @@ import argparse
 from pathlib import Path
 
 from pverosion.plotting import render_strip
-from pverosion.scenes import hills_cube, sixteen_cell_block, weathering_checkpoints
+from pverosion.scenes.weathering import hills_cube, sixteen_cell_block, weathering_checkpoints
 
 
 def weather(mesh, field, iterations, series):

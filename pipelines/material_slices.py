@@ -20,9 +20,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import pverosion
-from pverosion.kernels.bsp import BSPNode, BSPTree
-from pverosion.kernels.materials import BSPMaterials, Gradual
-from pverosion.kernels.surfaces import (
+from pverosion.examples import data_path
+from pverosion.kernels.materials.bsp import BSPNode, BSPTree
+from pverosion.kernels.materials.field import BSPMaterials, Gradual
+from pverosion.kernels.materials.surfaces import (
     Cylinder,
     Ellipsoid,
     EllipticHyperboloid,
@@ -34,7 +35,7 @@ from pverosion.kernels.surfaces import (
 )
 from pverosion.plotting import save_figure
 
-HEAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "HeadMRVolume.mhd"
+HEAD = data_path("HeadMRVolume.mhd")
 
 
 def middle_slice(field, n=160):

@@ -11,11 +11,11 @@ power_modifier_statistics.png.
 import argparse
 from pathlib import Path
 
-from pverosion.examples import load_rock
+from pverosion.examples import data_path, load_rock
 from pverosion.io import read_mesh
-from pverosion.scenes import power_modifier
+from pverosion.scenes.weathering import power_modifier
 
-BUNNY = Path(__file__).resolve().parents[2] / "shared" / "data" / "bunny.ply"
+BUNNY = data_path("bunny.ply")
 
 
 def main() -> None:

@@ -20,7 +20,7 @@ from pverosion.filters import VoxelErosion
 from pverosion.filters.base import output_times
 from pverosion.io import TimeSeriesWriter
 from pverosion.plotting import plot_slices, render_strip
-from pverosion.voxel_scenes import bank_erosion, hill_wash_grid, meander_grid, spring_grid
+from pverosion.scenes.voxel import bank_erosion, hill_wash_grid, meander_grid, spring_grid
 
 SCENES = {
     # builder of (grid, meander shape or None) at full or small size, options of the VoxelErosion filter

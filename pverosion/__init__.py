@@ -15,9 +15,11 @@ import sys
 from importlib import import_module
 from typing import TYPE_CHECKING
 
+from pverosion._moved import install as _install_moved_modules
 from pverosion._runtime import configure_environment
 
 configure_environment()  # before numba starts its threads
+_install_moved_modules()  # old module paths of the flat layout keep working, with a DeprecationWarning
 
 __version__ = "0.1.0"
 
@@ -32,8 +34,8 @@ _LAZY = {
     "shard_graph": "pverosion.api",
     "voxel_erosion": "pverosion.api",
     "weather": "pverosion.api",
-    "CoplanarOverlapError": "pverosion.kernels.mesh_repair",
-    "RepairError": "pverosion.kernels.mesh_repair",
+    "CoplanarOverlapError": "pverosion.kernels.repair.mesh_repair",
+    "RepairError": "pverosion.kernels.repair.mesh_repair",
     "InvalidMeshError": "pverosion.kernels.validation",
     "CURVATURE_CMAP": "pverosion.plotting",  # importing pverosion.plotting registers the colour map
     "curvature_cmap": "pverosion.plotting",
@@ -56,7 +58,7 @@ if TYPE_CHECKING:
         voxel_erosion,
         weather,
     )
-    from pverosion.kernels.mesh_repair import CoplanarOverlapError, RepairError
+    from pverosion.kernels.repair.mesh_repair import CoplanarOverlapError, RepairError
     from pverosion.kernels.validation import InvalidMeshError
     from pverosion.live import interactive
     from pverosion.plotting import CURVATURE_CMAP, curvature_cmap
@@ -65,7 +67,7 @@ if TYPE_CHECKING:
 
 def _in_paraview() -> bool:
     """True inside pvpython, pvbatch or ParaView's Python shell."""
-    return "paraview" in sys.modules or type(sys.stdout).__name__ == "vtkPythonStdStreamCaptureHelper"
+    return sys.modules.get("paraview") is not None or type(sys.stdout).__name__ == "vtkPythonStdStreamCaptureHelper"
 
 
 def _import_keeping_host_window(module: str):

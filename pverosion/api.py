@@ -25,15 +25,15 @@ from pverosion.filters.repair import BooleanOperation, RepairIntersections
 from pverosion.filters.shards import FreezeThaw, ShardGraph
 from pverosion.filters.voxel import VoxelErosion
 from pverosion.filters.weathering import Weathering
-from pverosion.kernels.materials import (
+from pverosion.kernels.fluid.particle_fluid import Drain, Emitter
+from pverosion.kernels.materials.erodibility import Erodibility
+from pverosion.kernels.materials.field import (
     BSPMaterials,
     Gradual,
     MaterialField,
     bsp_from_volume,
 )
-from pverosion.kernels.mesh_repair import DEFAULT_TOLERANCE
-from pverosion.kernels.particle_fluid import Drain, Emitter
-from pverosion.kernels.weathering import Erodibility
+from pverosion.kernels.repair.mesh_repair import DEFAULT_TOLERANCE
 
 __all__ = ["boolean", "curvature", "freeze_thaw", "hydraulic_erosion", "materials_from_volume", "repair",
            "sample_materials", "shard_graph", "voxel_erosion", "weather"]
@@ -563,8 +563,8 @@ def hydraulic_erosion(
     """Hydraulic erosion of a closed mesh by a particle fluid (Skorkovská 2019 §3.4; thesis ch. 8).
 
     ``emitter`` (at least one) is required. Emitters and drains given as
-    :class:`~pverosion.kernels.particle_fluid.Emitter` /
-    :class:`~pverosion.kernels.particle_fluid.Drain` objects reach the
+    :class:`~pverosion.kernels.fluid.particle_fluid.Emitter` /
+    :class:`~pverosion.kernels.fluid.particle_fluid.Drain` objects reach the
     solver as they are. ``emitters=`` and ``drains=`` are deprecated names
     of ``emitter=`` and ``drain=``.
 

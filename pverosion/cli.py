@@ -255,7 +255,7 @@ def _run_warmup(args: argparse.Namespace) -> None:
 def _run_demo(args: argparse.Namespace) -> None:
     import numpy as np
 
-    from pverosion.scenes import cube_to_sphere
+    from pverosion.scenes.weathering import cube_to_sphere
     from pverosion.warmup import warm_up
 
     warm_up(["weather"])

@@ -12,6 +12,8 @@ from xml.sax.saxutils import quoteattr
 import pyvista as pv
 from vtkmodules.vtkCommonCore import vtkObject
 
+from pverosion.kernels.files import atomic_path, file_mode
+
 __all__ = [
     "EXTENSIONS",
     "OUTPUT_FORMATS",
@@ -82,20 +84,6 @@ def _check_writable(path: Path, what: str) -> None:
         raise ValueError(f"{what} {path}: {parent} is not a folder")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise ValueError(f"{what} {path}: no permission to write in {parent}")
-
-
-def _umask() -> int:
-    """The process's file-creation mask (read without changing it where /proc tells it)."""
-    try:
-        with open("/proc/self/status", encoding="ascii") as status:
-            for line in status:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except (OSError, ValueError):
-        pass
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
 
 
 def _read(path: Path) -> pv.DataObject:
@@ -174,35 +162,6 @@ def read_mesh(path: str | os.PathLike) -> pv.PolyData:
     return data
 
 
-def atomic_path(path: str | os.PathLike):
-    """Context manager yielding a temporary path that replaces ``path`` on success.
-
-    The temporary file sits in the same folder with the same extension, so
-    writers that pick a format by extension work; on error it is removed and
-    ``path`` is left as it was.
-    """
-    return _AtomicPath(Path(path))
-
-
-class _AtomicPath:
-    def __init__(self, path: Path):
-        self.path = path
-
-    def __enter__(self) -> Path:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.stem}.", suffix=self.path.suffix, dir=self.path.parent)
-        os.close(fd)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; a written file gets the usual permissions
-        self.tmp = Path(tmp)
-        return self.tmp
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        if exc_type is None:
-            os.replace(self.tmp, self.path)
-        else:
-            self.tmp.unlink(missing_ok=True)
-
-
 def write_atomic(dataset: pv.DataObject, path: str | os.PathLike) -> Path:
     """Save ``dataset`` to ``path`` (format by extension) through a temporary file and a rename.
 
@@ -247,7 +206,7 @@ def _write_multiblock(blocks: pv.MultiBlock, path: Path) -> None:
     work = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
     try:
         blocks.save(work / path.name)  # writes work/<name>.vtm and work/<stem>/ with relative references
-        mode = 0o666 & ~_umask()
+        mode = file_mode()
         for item in work.rglob("*"):
             os.chmod(item, mode | 0o111 if item.is_dir() else mode)
         folder, built = blocks_folder(path), work / path.stem

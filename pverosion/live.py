@@ -21,11 +21,11 @@ import pyvista as pv
 
 from pverosion.filters.hydraulic import particles_polydata
 from pverosion.io import write_atomic
-from pverosion.kernels.geometry import average_edge_length
-from pverosion.kernels.hydraulic_erosion import HydraulicSolver
-from pverosion.kernels.particle_fluid import Emitter, FluidParameters
+from pverosion.kernels.fluid.particle_fluid import Emitter, FluidParameters
+from pverosion.kernels.hydraulic.erosion import HydraulicSolver
+from pverosion.kernels.mesh.geometry import average_edge_length
 from pverosion.kernels.validation import as_triangle_mesh
-from pverosion.kernels.weathering import WeatheringSolver
+from pverosion.kernels.weathering.model import WeatheringSolver
 from pverosion.plotting import _offscreen_pyvista, scalar_style
 
 __all__ = ["STAGES", "LiveSession", "interactive"]
@@ -59,8 +59,8 @@ class LiveSession:
         Hydraulic: gravity in model units per second squared; the source hangs above a pick against it
         (e.g. ``(0, -9.81, 0)`` for the bunny scan, whose up is +y).
     **options
-        Passed to :class:`~pverosion.kernels.hydraulic_erosion.HydraulicSolver` or
-        :class:`~pverosion.kernels.weathering.WeatheringSolver`.
+        Passed to :class:`~pverosion.kernels.hydraulic.erosion.HydraulicSolver` or
+        :class:`~pverosion.kernels.weathering.model.WeatheringSolver`.
 
     Attributes
     ----------

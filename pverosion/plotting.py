@@ -235,7 +235,7 @@ def plot_statistics(series: dict[str, dict[str, np.ndarray]], path: str | os.Pat
     ----------
     series : dict
         Run label -> statistics as returned by
-        :attr:`pverosion.kernels.weathering.WeatheringSolver.statistics`.
+        :attr:`pverosion.kernels.weathering.model.WeatheringSolver.statistics`.
     path : str or path-like
         PNG file to write (atomically).
 

@@ -78,7 +78,7 @@ def _sample_materials() -> None:
 
 def _voxel() -> None:
     from pverosion.api import voxel_erosion
-    from pverosion.voxel_scenes import meander_grid
+    from pverosion.scenes.voxel import meander_grid
 
     grid, _ = meander_grid((16, 8, 8), spacing=0.05, depth=2, half_width=2.0, amplitude=1.0)
     voxel_erosion(grid, iterations=2, source_velocity=(1.5, 0.0, 0.0))
@@ -86,21 +86,21 @@ def _voxel() -> None:
 
 def _shard_graph() -> None:
     from pverosion.api import shard_graph
-    from pverosion.shard_scenes import hill_cone
+    from pverosion.scenes.shards import hill_cone
 
     shard_graph(hill_cone(resolution=16), cells=20)
 
 
 def _shards() -> None:
     from pverosion.api import freeze_thaw
-    from pverosion.shard_scenes import hill_cone
+    from pverosion.scenes.shards import hill_cone
 
     freeze_thaw(hill_cone(resolution=16), iterations=1, paths_per_step=50, cells=20)
 
 
 def _repair() -> None:
     from pverosion.api import repair
-    from pverosion.intersection_scenes import two_spheres
+    from pverosion.scenes.intersection import two_spheres
 
     a, b = two_spheres()
     repair(a + b)
@@ -108,7 +108,7 @@ def _repair() -> None:
 
 def _boolean() -> None:
     from pverosion.api import boolean
-    from pverosion.intersection_scenes import two_spheres
+    from pverosion.scenes.intersection import two_spheres
 
     boolean(*two_spheres(), "union")
 

@@ -12,9 +12,11 @@ import numpy as np
 import pytest
 import pyvista as pv
 
+from pverosion.examples import data_path
+
 os.environ.setdefault("PYVISTA_OFF_SCREEN", "true")
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+DATA = data_path()
 
 _DISPLAYS = itertools.count()
 
@@ -61,8 +63,8 @@ def bunny() -> pv.PolyData:
 @pytest.fixture(scope="session")
 def closed_bunny(bunny) -> tuple[np.ndarray, np.ndarray]:
     """The bunny scan with its holes filled and every part turned outward: points (V, 3) and faces (F, 3)."""
-    from pverosion.hydraulic_scenes import fill_holes
-    from pverosion.kernels.mesh_repair import outward_parts
+    from pverosion.kernels.repair.mesh_repair import outward_parts
+    from pverosion.meshing import fill_holes
 
     points, faces = fill_holes(np.asarray(bunny.points, float), bunny.regular_faces)
     return points, outward_parts(points, faces)

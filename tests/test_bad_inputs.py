@@ -44,7 +44,7 @@ def _sphere() -> pv.PolyData:
 
 
 def _grid() -> pv.ImageData:
-    from pverosion.voxel_scenes import spring_grid
+    from pverosion.scenes.voxel import spring_grid
 
     return spring_grid(shape=(12, 10, 10))
 

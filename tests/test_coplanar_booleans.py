@@ -7,9 +7,9 @@ import pytest
 import pyvista as pv
 from test_repair_guarantees import _box, _join, assert_two_manifold
 
-from pverosion.kernels.geometry import signed_volume
-from pverosion.kernels.intersection_curves import coplanar_overlaps, intersection_curves
-from pverosion.kernels.mesh_repair import OPERATIONS, boolean_meshes, mesh_problems, repair_intersections
+from pverosion.kernels.exact.intersection_curves import coplanar_overlaps, intersection_curves
+from pverosion.kernels.mesh.geometry import signed_volume
+from pverosion.kernels.repair.mesh_repair import OPERATIONS, boolean_meshes, mesh_problems, repair_intersections
 
 manifold3d = pytest.importorskip("manifold3d")
 
@@ -179,7 +179,7 @@ def test_mesh_and_its_mirror_image_across_its_flat_face():
 def test_coplanar_segments_are_the_edges_inside_the_other_face():
     """Two triangles in z = 0 overlapping in the triangle (1, 1), (3, 1), (1, 3): the cut segments are the parts of
     their edges inside each other, which bound that triangle, with ends at a vertex or where two edges cross."""
-    from pverosion.kernels.intersection_curves import EDGE_EDGE, VERTEX, canonical_vertices, curves_of
+    from pverosion.kernels.exact.intersection_curves import EDGE_EDGE, VERTEX, canonical_vertices, curves_of
 
     points = np.array([[0.0, 0, 0], [4, 0, 0], [0, 4, 0], [1, 1, 0], [5, 1, 0], [1, 5, 0]])
     faces = np.array([[0, 1, 2], [3, 4, 5]])

@@ -8,7 +8,7 @@ from conftest import height_field, icosphere
 import pverosion
 from pverosion.examples import load_cylinder, load_torus
 from pverosion.kernels import InvalidMeshError, orient_faces, principal_curvatures
-from pverosion.kernels.curvature import CurvatureOperator, CurvatureTracker
+from pverosion.kernels.curvature.operator import CurvatureOperator, CurvatureTracker
 
 
 def test_sphere_mean_and_gaussian_curvature():

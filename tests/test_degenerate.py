@@ -8,9 +8,9 @@ import pyvista as pv
 from test_mesh_repair import _reference, _volume, assert_clean
 from test_topology_repair import _closed
 
-from pverosion.kernels.degenerate import remove_degenerate_faces
-from pverosion.kernels.geometry import average_edge_length
-from pverosion.kernels.mesh_repair import IMPROVE_EDGE_RATIO, boolean_meshes, repair_intersections
+from pverosion.kernels.mesh.degenerate import remove_degenerate_faces
+from pverosion.kernels.mesh.geometry import average_edge_length
+from pverosion.kernels.repair.mesh_repair import IMPROVE_EDGE_RATIO, boolean_meshes, repair_intersections
 
 A = pv.Icosphere(radius=1.0, nsub=3)
 B = pv.Icosphere(radius=0.6, nsub=2).rotate_z(17.0).translate((0.95, 0.2, 0.1))

@@ -7,8 +7,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from pverosion.filters.base import polydata_triangles
-from pverosion.kernels.freeze_thaw import AIR, CORE, FreezeThawParameters, FreezeThawSimulation
-from pverosion.kernels.shards import build_shards
+from pverosion.kernels.shards.freeze_thaw import AIR, CORE, FreezeThawParameters, FreezeThawSimulation
+from pverosion.kernels.shards.graph import build_shards
 
 
 def _cone_seeds(n, seed):
@@ -240,7 +240,7 @@ def _removed_sets(graph, seeds, paths):
 @pytest.fixture(scope="module")
 def hill_cone_points():
     from pverosion.filters.shards import pattern_seeds
-    from pverosion.shard_scenes import hill_cone
+    from pverosion.scenes.shards import hill_cone
 
     cone = hill_cone()
     points, faces = polydata_triangles(cone)

@@ -193,7 +193,7 @@ def test_cli_runs_a_deprecated_stage_name_with_a_warning(tmp_path, capsys):
 def test_structured_options_keep_python_objects():
     from pverosion.filters import HydraulicErosion
     from pverosion.filters.hydraulic import format_emitters, parse_emitters
-    from pverosion.kernels.particle_fluid import Drain, Emitter
+    from pverosion.kernels.fluid.particle_fluid import Drain, Emitter
 
     emitter = Emitter((0.0, 0.0, 2.0), (0.0, 0.0, -1.0), 0.3, 5.0, 1.5)
     alg = HydraulicErosion(emitter=[emitter], drain=Drain("plane", (0, 0, 1, 5)))

@@ -7,16 +7,16 @@ import pytest
 import pyvista as pv
 from scipy.spatial import cKDTree
 
-from pverosion.kernels.geometry import point_areas, signed_volume
-from pverosion.kernels.hydraulic_erosion import (
+from pverosion.kernels.fluid.particle_fluid import Drain, Emitter, FluidParameters
+from pverosion.kernels.hydraulic.erosion import (
     HydraulicSolver,
     ShearParameters,
     _apply_volumes,
     _exchange,
     nearest_particle_distance,
 )
-from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters
-from pverosion.kernels.topology import one_ring, vertex_face_incidence
+from pverosion.kernels.mesh.geometry import point_areas, signed_volume
+from pverosion.kernels.mesh.topology import one_ring, vertex_face_incidence
 
 
 def _block(resolution: int = 12) -> pv.PolyData:
@@ -38,7 +38,7 @@ def _solver(model: str = "curvature", *, seed: int = 0, speed: float | None = No
 def test_curvature_model_is_independent_of_units(scale):
     # the same scene in other units: lengths, speeds and gravity scaled alike (the rate in particles/s is not)
     from pverosion.examples import load_rock
-    from pverosion.hydraulic_scenes import pour_scene
+    from pverosion.scenes.hydraulic import pour_scene
 
     rock = load_rock(subdivisions=3)
     runs = []
@@ -260,8 +260,8 @@ def test_bad_options_are_named():
 
 
 def test_canyon_walls_are_undercut_and_particles_stay_out():
-    from pverosion.hydraulic_scenes import canyon_scene
-    from pverosion.kernels.overhangs import overhanging_vertices
+    from pverosion.kernels.hydraulic.overhangs import overhanging_vertices
+    from pverosion.scenes.hydraulic import canyon_scene
 
     scene = canyon_scene(n_faces=6000)
     emitter = Emitter.parse(scene.emitters[0])
@@ -284,7 +284,7 @@ def test_canyon_walls_are_undercut_and_particles_stay_out():
 def test_sediment_pour_over_the_bunny_is_smooth(bunny):
     # a particle larger than the edges used to pour its whole exchange into the contact face's corners, leaving
     # single-vertex needles (19 mm deep on the 155 mm bunny, one-ring untouched) after 150 iterations
-    from pverosion.hydraulic_scenes import pour_scene
+    from pverosion.scenes.hydraulic import pour_scene
 
     scene = pour_scene(mesh=bunny, up=(0.0, 1.0, 0.0))
     solver = HydraulicSolver(np.asarray(scene.mesh.points, dtype=float), scene.mesh.regular_faces,

@@ -65,7 +65,7 @@ def test_function_accessor_and_cli_agree(tmp_path):
 
 
 def test_numbers_and_kernel_objects_work_as_emitters():
-    from pverosion.kernels.particle_fluid import Emitter
+    from pverosion.kernels.fluid.particle_fluid import Emitter
 
     slab = _slab()
     numbers = [float(v) for v in EMITTER.split(",")]

@@ -12,7 +12,12 @@ from scipy.sparse.csgraph import connected_components
 from skimage.morphology import reconstruction
 
 from pverosion.examples import load_cube, load_rock
-from pverosion.hydraulic_scenes import (
+from pverosion.kernels.exact.intersection import intersecting_faces
+from pverosion.kernels.fluid.particle_fluid import Drain, Emitter, FluidParameters, ParticleFluid
+from pverosion.kernels.hydraulic.overhangs import overhanging_vertices
+from pverosion.kernels.mesh.geometry import signed_volume
+from pverosion.kernels.mesh.orientation import winding_number
+from pverosion.scenes.hydraulic import (
     HELENS_WINDOW,
     SCENES,
     HydraulicScene,
@@ -22,11 +27,6 @@ from pverosion.hydraulic_scenes import (
     pour_scene,
     river_scene,
 )
-from pverosion.kernels.geometry import signed_volume
-from pverosion.kernels.intersection import intersecting_faces
-from pverosion.kernels.orientation import winding_number
-from pverosion.kernels.overhangs import overhanging_vertices
-from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters, ParticleFluid
 
 DEM = DATA / "SainteHelens.dem"
 

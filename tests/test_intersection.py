@@ -3,7 +3,7 @@ import pytest
 from conftest import icosphere
 
 from pverosion.examples import load_torus
-from pverosion.kernels.intersection import (
+from pverosion.kernels.exact.intersection import (
     intersecting_faces,
     intersecting_pairs,
     spatial_order,

@@ -7,8 +7,8 @@ import pytest
 import pyvista as pv
 
 from pverosion.kernels import InvalidMeshError
-from pverosion.kernels.intersection import candidate_pairs, triangles_intersect
-from pverosion.kernels.intersection_curves import (
+from pverosion.kernels.exact.intersection import candidate_pairs, triangles_intersect
+from pverosion.kernels.exact.intersection_curves import (
     EDGE_EDGE,
     EDGE_FACE,
     VERTEX,

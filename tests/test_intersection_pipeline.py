@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import pyvista as pv
 
-from pverosion.intersection_scenes import two_spheres
+from pverosion.scenes.intersection import two_spheres
 
 SCRIPT = Path(__file__).resolve().parents[1] / "pipelines" / "intersection_scenes.py"
 

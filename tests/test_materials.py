@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from conftest import DATA
 
-from pverosion.kernels.bsp import (
+from pverosion.kernels.materials.bsp import (
     LATTICE_DIRECTIONS,
     LEAF,
     BSPNode,
@@ -11,14 +11,14 @@ from pverosion.kernels.bsp import (
     build_from_labels,
     build_from_triangles,
 )
-from pverosion.kernels.materials import (
+from pverosion.kernels.materials.field import (
     BSPMaterials,
     Gradual,
     VertexMaterials,
     VolumeMaterials,
     bsp_from_volume,
 )
-from pverosion.kernels.surfaces import (
+from pverosion.kernels.materials.surfaces import (
     Cylinder,
     Ellipsoid,
     EllipticHyperboloid,

@@ -5,10 +5,10 @@ import pyvista as pv
 import pverosion
 from pverosion.cli import main
 from pverosion.filters import MaterialSampler, MaterialsFromVolume
-from pverosion.kernels.materials import BSPMaterials
-from pverosion.kernels.surfaces import Sphere
-from pverosion.kernels.weathering import WeatheringSolver
-from pverosion.scenes import sixteen_cell_block
+from pverosion.kernels.materials.field import BSPMaterials
+from pverosion.kernels.materials.surfaces import Sphere
+from pverosion.kernels.weathering.model import WeatheringSolver
+from pverosion.scenes.weathering import sixteen_cell_block
 
 
 def _ball_image(n=20):

@@ -10,10 +10,10 @@ from numba import njit, prange
 from test_intersection_curves import crossed_torus, rotated_cuboids
 
 from pverosion.kernels import InvalidMeshError
-from pverosion.kernels.intersection import candidate_pairs, triangles_intersect
-from pverosion.kernels.intersection_curves import intersection_curves
-from pverosion.kernels.mesh_repair import OPERATIONS, boolean_meshes, repair_intersections
-from pverosion.kernels.orientation import winding_number
+from pverosion.kernels.exact.intersection import candidate_pairs, triangles_intersect
+from pverosion.kernels.exact.intersection_curves import intersection_curves
+from pverosion.kernels.mesh.orientation import winding_number
+from pverosion.kernels.repair.mesh_repair import OPERATIONS, boolean_meshes, repair_intersections
 
 manifold3d = pytest.importorskip("manifold3d")
 

@@ -3,7 +3,7 @@ import pytest
 from conftest import height_field, icosphere
 
 from pverosion.kernels import orient_faces, signed_volume, winding_number
-from pverosion.kernels.orientation import orient_sorted
+from pverosion.kernels.mesh.orientation import orient_sorted
 
 
 def _scramble(faces, seed=0):

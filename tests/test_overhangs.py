@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from conftest import height_field, icosphere
 
-from pverosion.kernels.overhangs import overhanging_vertices
-from pverosion.kernels.terrain import height_field_solid
+from pverosion.kernels.hydraulic.overhangs import overhanging_vertices
+from pverosion.kernels.mesh.terrain import height_field_solid
 
 
 def voxel_surface(occupied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

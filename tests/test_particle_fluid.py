@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 import pyvista as pv
 
-from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters, ParticleFluid, _drift_buckets, _mesh_grid
+from pverosion.kernels.fluid.particle_fluid import (
+    Drain,
+    Emitter,
+    FluidParameters,
+    ParticleFluid,
+    _drift_buckets,
+    _mesh_grid,
+)
 
 R = 0.05
 D = 2.0 * R

@@ -7,8 +7,8 @@ import itertools
 import numpy as np
 import pytest
 
-from pverosion.kernels.polygon_cut import LOCATION_EDGE, LOCATION_INTERIOR, cut_triangle, cut_triangles
-from pverosion.kernels.predicates import orient2d_batch
+from pverosion.kernels.exact.polygon_cut import LOCATION_EDGE, LOCATION_INTERIOR, cut_triangle, cut_triangles
+from pverosion.kernels.exact.predicates import orient2d_batch
 
 # ---------------------------------------------------------------------------
 # Building inputs

@@ -9,7 +9,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from pverosion.kernels.predicates import (
+from pverosion.kernels.exact.predicates import (
     _orient2d_exact,
     _orient3d_exact,
     orient2d,

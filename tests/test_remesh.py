@@ -1,9 +1,9 @@
 import numpy as np
 from conftest import icosphere
 
-from pverosion.kernels.geometry import face_normals, signed_volume
-from pverosion.kernels.remesh import collapse_short_edges, short_edge_candidates
-from pverosion.kernels.topology import edge_topology
+from pverosion.kernels.mesh.geometry import face_normals, signed_volume
+from pverosion.kernels.mesh.remesh import collapse_short_edges, short_edge_candidates
+from pverosion.kernels.mesh.topology import edge_topology
 
 
 def _sphere_with_short_edges(n_short=40, seed=0):

@@ -13,8 +13,8 @@ from vtkmodules.vtkFiltersSources import vtkSphereSource
 import pverosion
 from pverosion.cli import main
 from pverosion.filters import ALL_FILTERS, BooleanOperation, RepairIntersections
-from pverosion.kernels.intersection_curves import CASES, IMPOSSIBLE_CASES
-from pverosion.kernels.mesh_repair import OPERATIONS
+from pverosion.kernels.exact.intersection_curves import CASES, IMPOSSIBLE_CASES
+from pverosion.kernels.repair.mesh_repair import OPERATIONS
 
 manifold3d = pytest.importorskip("manifold3d")
 

@@ -11,9 +11,9 @@ from test_mesh_repair import winding_numbers
 
 import pverosion
 import pverosion._accessor  # noqa: F401 - registers mesh.erosion without an installed entry point
-from pverosion.kernels.geometry import signed_volume, vertex_normals
-from pverosion.kernels.intersection_curves import coplanar_overlaps, intersection_curves
-from pverosion.kernels.mesh_repair import (
+from pverosion.kernels.exact.intersection_curves import coplanar_overlaps, intersection_curves
+from pverosion.kernels.mesh.geometry import signed_volume, vertex_normals
+from pverosion.kernels.repair.mesh_repair import (
     OPERATIONS,
     RepairError,
     RepairResult,
@@ -309,7 +309,7 @@ def test_fuzz_corpus_against_manifold3d(one_thread):
     """Seeded: 400 Booleans of two rigid copies (every operation alike), 100 repaired soups of three, and 100
     Booleans of two boxes on a grid (faces overlapping in common planes, with different tessellations). Every case
     gives a clean result with manifold3d's volume or RepairError, never a broken mesh."""
-    from pverosion.intersection_scenes import fuzz_operands, fuzz_primitives
+    from pverosion.scenes.intersection import fuzz_operands, fuzz_primitives
 
     rng = np.random.default_rng(20261125)
     shapes = fuzz_primitives()
@@ -354,7 +354,7 @@ def test_neighbours_at_a_vertex_that_cross_beyond_it_give_a_segment_from_it():
 
 
 def test_candidate_pairs_with_a_query_are_the_pairs_with_a_queried_face():
-    from pverosion.kernels.intersection import candidate_pairs
+    from pverosion.kernels.exact.intersection import candidate_pairs
 
     a, b = pv.Icosphere(radius=1.0, nsub=2), pv.Icosphere(radius=0.8, nsub=2, center=(0.7, 0.1, 0.0))
     points, faces = _join(_arrays(a), _arrays(b))
@@ -380,9 +380,9 @@ def test_the_broad_phase_keeps_every_pair_the_exact_predicates_find_meeting(one_
     """The separating planes of the broad phase (between coplanar faces, and around shared vertices) drop only
     pairs that the exact classification calls apart: checked against all box-overlapping pairs of fuzz corpus
     operands (with exactly coplanar faces, shared edges and vertices) and of a flat tessellated box union."""
-    from pverosion.intersection_scenes import fuzz_operands, fuzz_primitives
-    from pverosion.kernels.intersection import candidate_pairs
-    from pverosion.kernels.intersection_curves import _APART, _classify_pairs, canonical_vertices
+    from pverosion.kernels.exact.intersection import candidate_pairs
+    from pverosion.kernels.exact.intersection_curves import _APART, _classify_pairs, canonical_vertices
+    from pverosion.scenes.intersection import fuzz_operands, fuzz_primitives
 
     rng = np.random.default_rng(7)
     shapes = fuzz_primitives()

@@ -9,7 +9,8 @@ import pyvista as pv
 from scipy.spatial import ConvexHull, Voronoi, cKDTree
 
 from pverosion.filters.base import polydata_triangles
-from pverosion.kernels.seed_patterns import (
+from pverosion.kernels.shards.graph import build_shards
+from pverosion.kernels.shards.seed_patterns import (
     hex_column_seeds,
     inside_mesh,
     jittered_grid_seeds,
@@ -18,7 +19,6 @@ from pverosion.kernels.seed_patterns import (
     slab_seeds,
     uniform_seeds,
 )
-from pverosion.kernels.shards import build_shards
 
 BOX = (np.array([-1.0, -0.5, 0.0]), np.array([1.0, 0.5, 1.2]))
 

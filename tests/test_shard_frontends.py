@@ -8,7 +8,7 @@ import pverosion
 from pverosion.cli import main
 from pverosion.filters import FreezeThaw
 from pverosion.filters.shards import PATTERNS, pattern_seeds
-from pverosion.shard_scenes import hill_cone
+from pverosion.scenes.shards import hill_cone
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +35,7 @@ def test_shard_graph_rebuilds_a_torus_from_closed_shards():
 @pytest.mark.parametrize("pattern", PATTERNS)
 def test_every_seed_pattern_fills_the_cone(cone, pattern):
     from pverosion.filters.base import polydata_triangles
-    from pverosion.kernels.shards import build_shards
+    from pverosion.kernels.shards.graph import build_shards
 
     points, faces = polydata_triangles(cone)
     seeds = pattern_seeds(points, faces, pattern=pattern, cells=200, seed=1)

@@ -7,9 +7,9 @@ import pyvista as pv
 from scipy.spatial import ConvexHull
 
 from pverosion.filters.base import polydata_triangles
-from pverosion.kernels import shard_geometry
-from pverosion.kernels.shard_geometry import LinkMesh, cell_surfaces, cells_boundary, link_polygons
-from pverosion.kernels.shards import build_shards
+from pverosion.kernels.shards import geometry as shard_geometry
+from pverosion.kernels.shards.geometry import LinkMesh, cell_surfaces, cells_boundary, link_polygons
+from pverosion.kernels.shards.graph import build_shards
 
 
 def _l_block():

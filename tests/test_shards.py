@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import pyvista as pv
 
-from pverosion.kernels.shards import build_shards
+from pverosion.kernels.shards.graph import build_shards
 
 
 def _mesh(mesh):

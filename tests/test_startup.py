@@ -45,7 +45,7 @@ def test_help_loads_no_kernels_and_lists_every_stage():
 
 
 def test_one_stage_imports_only_its_filter():
-    others = ("pverosion.filters.repair", "pverosion.kernels.predicates")
+    others = ("pverosion.filters.repair", "pverosion.kernels.exact.predicates")
     run = _loaded_after("from pverosion.cli import build_parser\nbuild_parser(stages={'curvature'})\nimport sys\n"
                         f"print(*(m in sys.modules for m in {others!r}))")
     assert run["stdout"] == "False False"

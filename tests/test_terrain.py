@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from pverosion.kernels.geometry import signed_volume
-from pverosion.kernels.terrain import height_field_solid
-from pverosion.kernels.topology import halfedge_twins
+from pverosion.kernels.mesh.geometry import signed_volume
+from pverosion.kernels.mesh.terrain import height_field_solid
+from pverosion.kernels.mesh.topology import halfedge_twins
 
 
 @pytest.mark.parametrize("shape, spacing", [((2, 2), 1.0), ((7, 4), (0.5, 0.25)), ((30, 45), (2.0, 3.0))])

@@ -15,7 +15,7 @@ from pverosion.kernels import (
     uniform_laplacian,
     vertex_face_incidence,
 )
-from pverosion.kernels.topology import halfedge_twins, locality_sorted, sorted_twins
+from pverosion.kernels.mesh.topology import halfedge_twins, locality_sorted, sorted_twins
 
 
 def test_closed_sphere_edges_follow_euler():

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 import pyvista as pv
 
-from pverosion.kernels.hydraulic_erosion import HydraulicSolver
-from pverosion.kernels.intersection import intersecting_faces
-from pverosion.kernels.intersection_curves import intersection_curves
-from pverosion.kernels.mesh_evolution import GuardedMeshSolver, volume_area
-from pverosion.kernels.particle_fluid import FluidParameters
+from pverosion.kernels.exact.intersection import intersecting_faces
+from pverosion.kernels.exact.intersection_curves import intersection_curves
+from pverosion.kernels.fluid.particle_fluid import FluidParameters
+from pverosion.kernels.hydraulic.erosion import HydraulicSolver
+from pverosion.kernels.solver.mesh_evolution import GuardedMeshSolver, volume_area
 
 
 class Dent(GuardedMeshSolver):

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from pverosion.filters.voxel import _grid_array
-from pverosion.kernels.voxel_erosion import ErosionParameters, VoxelErosionSolver, erosion_step
-from pverosion.voxel_scenes import bank_erosion, meander_grid
+from pverosion.kernels.voxel.erosion import ErosionParameters, VoxelErosionSolver, erosion_step
+from pverosion.scenes.voxel import bank_erosion, meander_grid
 
 
 def _channel():

@@ -5,8 +5,8 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from pverosion.kernels.pressure import AIR, LIQUID, SOLID, divergence, pressure_solve
-from pverosion.kernels.voxel_fluid import ADVECTION_SCHEMES, VoxelFluid
+from pverosion.kernels.voxel.fluid import ADVECTION_SCHEMES, VoxelFluid
+from pverosion.kernels.voxel.pressure import AIR, LIQUID, SOLID, divergence, pressure_solve
 
 
 def _poisson_matrix(types):

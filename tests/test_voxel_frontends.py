@@ -14,8 +14,8 @@ from pverosion.filters.voxel import (
     voxel_grid_from_mesh,
     voxel_grid_from_volume,
 )
-from pverosion.kernels.geometry import signed_volume
-from pverosion.voxel_scenes import meander_grid
+from pverosion.kernels.mesh.geometry import signed_volume
+from pverosion.scenes.voxel import meander_grid
 
 
 def _meander_grid():

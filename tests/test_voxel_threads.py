@@ -14,7 +14,7 @@ SCRIPT = """
 import hashlib
 import numpy as np
 from pverosion.api import voxel_erosion
-from pverosion.voxel_scenes import meander_grid
+from pverosion.scenes.voxel import meander_grid
 
 grid = meander_grid(shape=(64, 32, 16), depth=4, half_width=3.0)[0]
 state = voxel_erosion(grid, iterations=3, time_step=0.02)["state"]

@@ -7,9 +7,9 @@ import pverosion
 import pverosion.examples
 from pverosion.examples import load_cube, load_hand
 from pverosion.filters import Weathering
-from pverosion.kernels.intersection import intersecting_faces
-from pverosion.kernels.topology import edge_topology
-from pverosion.kernels.weathering import WeatheringSolver
+from pverosion.kernels.exact.intersection import intersecting_faces
+from pverosion.kernels.mesh.topology import edge_topology
+from pverosion.kernels.weathering.model import WeatheringSolver
 
 
 def _spread(points):

@@ -21,8 +21,7 @@ GROUPS = (
     ("Kernels (arrays in, arrays out)", ("pverosion.kernels",)),
     ("Batch runs", ("pverosion.batch",)),
     ("Command line", ("pverosion.cli",)),
-    ("Example data and scenes", ("pverosion.examples", "pverosion.scenes", "pverosion.hydraulic_scenes",
-                                 "pverosion.voxel_scenes", "pverosion.shard_scenes", "pverosion.intersection_scenes")),
+    ("Example data and scenes", ("pverosion.examples", "pverosion.scenes", "pverosion.meshing")),
 )
 ACCESSOR = "pverosion._accessor.ErosionAccessor"
 

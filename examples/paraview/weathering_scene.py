@@ -9,9 +9,20 @@ in the GUI: View > Python Shell > Run Script. Writes
 import sys
 from pathlib import Path
 
-from paraview.simple import (ColorBy, CreateView, GetAnimationScene, GetColorTransferFunction, Hide, Render,
-                             ResetCamera, SaveScreenshot, Show, Sphere, pverosionCurvatureRusinkiewicz,
-                             pverosionWeatheringcurvaturedriven)
+from paraview.simple import (
+    ColorBy,
+    CreateView,
+    GetAnimationScene,
+    GetColorTransferFunction,
+    Hide,
+    Render,
+    ResetCamera,
+    SaveScreenshot,
+    Show,
+    Sphere,
+    pverosionCurvatureRusinkiewicz,
+    pverosionWeatheringcurvaturedriven,
+)
 
 out = Path(sys.argv[1] if len(sys.argv) > 1 else ".")
 rock = Sphere(Radius=1.0, ThetaResolution=48, PhiResolution=48)

@@ -2,10 +2,33 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import numpy as np
 import pyvista as pv
 
-__all__ = ["EXAMPLES", "load_cube", "load_cylinder", "load_hand", "load_rock", "load_torus", "periodic_grid_surface"]
+__all__ = ["EXAMPLES", "data_path", "load_cube", "load_cylinder", "load_hand", "load_rock", "load_torus", "periodic_grid_surface"]
+
+
+def data_path(name: str = "") -> Path:
+    """Path of ``name`` in the folder of real scans (``bunny.ply``, ``SainteHelens.dem``, ``HeadMRVolume.mhd``).
+
+    The folder is ``$PVEROSION_DATA`` when it is set, else ``shared/data`` beside the source
+    checkout (``<checkout>/../shared/data``).  The path is returned whether or not it exists, so
+    tests, pipelines, benchmarks and examples fall back to procedural stand-ins when it does not.
+
+    Parameters
+    ----------
+    name : str, optional
+        File name in the folder; empty for the folder itself.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    folder = os.environ.get("PVEROSION_DATA")
+    return (Path(folder) if folder else Path(__file__).resolve().parents[3] / "shared" / "data") / name
 
 
 def _triangulate_grid(n_u: int, n_v: int, *, wrap_u: bool, wrap_v: bool) -> np.ndarray:

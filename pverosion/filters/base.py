@@ -534,6 +534,34 @@ class TimeSteppedFilter(ErosionFilter):
         self._time = info.Get(SDDP.UPDATE_TIME_STEP()) if info.Has(SDDP.UPDATE_TIME_STEP()) else None
         return super().RequestData(request, in_info, out_info)
 
+    def execute(self, inp, out) -> None:
+        """Advance (or restart) the cached solver to the requested step, then fill ``out`` from it.
+
+        The one execution of every time-stepped stage: the solver
+        (:class:`~pverosion.kernels.solver.protocol.Solver`) comes from :meth:`_new_solver` and is kept
+        between updates (:meth:`cached_solver`), progress is reported after every step, and a pending
+        Ctrl-C stops the run between two steps.
+        """
+        step = self.requested_step()
+        solver, _ = self.cached_solver(inp, step, self._new_solver)
+        start = solver.step_count
+        total = max(step - start, 1)
+
+        def progress(s) -> None:
+            self.UpdateProgress(min((s.step_count - start) / total, 1.0))
+
+        solver.run(step - start, outputs=[step], on_step=progress)
+        self._fill(solver, inp, out)
+        out.GetInformation().Set(out.DATA_TIME_STEP(), float(step))
+
+    def _new_solver(self, inp):
+        """A new solver for input ``inp`` at step 0; implemented by each stage."""
+        raise NotImplementedError
+
+    def _fill(self, solver, inp, out) -> None:
+        """Fill ``out`` from the solver's current state; implemented by each stage."""
+        raise NotImplementedError
+
     def cached_solver(self, inp, step: int, build: Callable[[Any], Any]) -> tuple[Any, bool]:
         """The solver kept from the last update, or ``build(inp)`` when it cannot continue to ``step``.
 

@@ -12,9 +12,9 @@ from pverosion.filters.base import (
     set_field_value,
     set_point_array,
 )
-from pverosion.kernels.curvature import CurvatureOperator, principal_curvatures
-from pverosion.kernels.normalize import NORMALIZATIONS, normalize_curvature
-from pverosion.kernels.orientation import ORIENTATIONS, orient_sorted
+from pverosion.kernels.curvature.normalize import NORMALIZATIONS, normalize_curvature
+from pverosion.kernels.curvature.operator import CurvatureOperator, principal_curvatures
+from pverosion.kernels.mesh.orientation import ORIENTATIONS, orient_sorted
 from pverosion.kernels.validation import as_triangle_mesh
 
 __all__ = ["Curvature"]

@@ -20,19 +20,18 @@ from pverosion.filters.base import (
     set_multiblock,
     set_point_array,
 )
-from pverosion.filters.weathering import MeshSolverFilter, weathering_output
-from pverosion.kernels.geometry import average_edge_length
-from pverosion.kernels.hydraulic_erosion import MODELS, HydraulicSolver, ShearParameters
-from pverosion.kernels.mesh_evolution import REPAIR_MODES
-from pverosion.kernels.normalize import SOLVER_NORMALIZATIONS
-from pverosion.kernels.orientation import ORIENTATIONS
-from pverosion.kernels.particle_fluid import Drain, Emitter, FluidParameters
+from pverosion.filters.mesh_solver import MeshSolverFilter, mesh_solver_output
+from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS
+from pverosion.kernels.fluid.particle_fluid import Drain, Emitter, FluidParameters
+from pverosion.kernels.hydraulic.erosion import MODELS, HydraulicSolver, ShearParameters
+from pverosion.kernels.mesh.geometry import average_edge_length
+from pverosion.kernels.mesh.orientation import ORIENTATIONS
+from pverosion.kernels.solver.mesh_evolution import REPAIR_MODES
 from pverosion.kernels.validation import InvalidMeshError
 from pverosion.limits import check_memory, check_work
 
 __all__ = ["HydraulicErosion", "format_drains", "format_emitters", "parse_drains", "parse_emitters",
-           "particles_polydata",
-           "to_drains", "to_emitters"]
+           "particles_polydata", "to_drains", "to_emitters"]
 
 _SHEAR = ("erosion_rate", "critical_stress", "stress_constant", "stress_power", "rate_power")
 
@@ -249,7 +248,7 @@ class HydraulicErosion(MeshSolverFilter):
             raise ValueError("hydraulic erosion needs water: give at least one emitter x,y,z,dx,dy,dz,r,rate")
         holes = topology.n_boundary_edges
         if holes and self.get_option("close_holes"):
-            from pverosion.hydraulic_scenes import fill_holes  # the scenes' hole filling (imports this module)
+            from pverosion.meshing import fill_holes  # loads matplotlib: only when a hole is filled
 
             points, faces = fill_holes(points, faces)
         elif holes:
@@ -281,7 +280,7 @@ class HydraulicErosion(MeshSolverFilter):
         if self.requested_step() == self.get_option("iterations"):  # judged on the whole run, not its first steps
             _warn_without_water(solver)
         mesh = vtkPolyData()
-        weathering_output(solver, inp, mesh, prefix="hydraulic")
+        mesh_solver_output(solver, inp, mesh, prefix="hydraulic")
         set_point_array(mesh, "f_distance", solver.f_distance)
         set_point_array(mesh, "pending_sediment", solver.pending)
         set_field_value(mesh, "model", solver.model)

@@ -6,8 +6,8 @@ import numpy as np
 from vtkmodules.util import numpy_support
 
 from pverosion.filters.base import ErosionFilter, Param, parse_numbers, set_field_value
-from pverosion.kernels.bsp import BSP_METHODS, BSPTree
-from pverosion.kernels.materials import (
+from pverosion.kernels.materials.bsp import BSP_METHODS, BSPTree
+from pverosion.kernels.materials.field import (
     BSPMaterials,
     Gradual,
     MaterialField,

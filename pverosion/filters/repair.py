@@ -1,6 +1,6 @@
 """Repair and Boolean filters: self-intersections cut away, union / intersection / difference of closed meshes.
 
-Both wrap :mod:`pverosion.kernels.mesh_repair` (Skorkovská's thesis §10.2–10.3)
+Both wrap :mod:`pverosion.kernels.repair.mesh_repair` (Skorkovská's thesis §10.2–10.3)
 and fill their output alike:
 
 - point data ``on_intersection`` (int8, 1 on a vertex of an intersection curve);
@@ -11,7 +11,7 @@ and fill their output alike:
   Boolean, those that both inputs have with the same number of components);
 - field data: ``intersection_cases`` (int64, how often each case of the
   thesis' Table 10.1 occurred, in the order of ``intersection_case_names``,
-  i.e. :data:`~pverosion.kernels.intersection_curves.CASES`),
+  i.e. :data:`~pverosion.kernels.exact.intersection_curves.CASES`),
   ``intersection_valid_cases``, ``intersection_impossible_cases``,
   ``intersection_segments``, ``intersection_loops`` (the traced curves),
   ``intersection_touching`` (face pairs meeting in one point) and
@@ -28,8 +28,9 @@ from vtkmodules.vtkCommonCore import vtkPoints, vtkStringArray
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 
 from pverosion.filters.base import ErosionFilter, Param, polydata_triangles, replace_triangles
-from pverosion.kernels.intersection_curves import CASES
-from pverosion.kernels.mesh_repair import (
+from pverosion.kernels.exact.intersection_curves import CASES
+from pverosion.kernels.mesh.topology import boundary_edges
+from pverosion.kernels.repair.mesh_repair import (
     DEFAULT_TOLERANCE,
     OPERATIONS,
     RepairResult,
@@ -37,7 +38,6 @@ from pverosion.kernels.mesh_repair import (
     outward_parts,
     repair_intersections,
 )
-from pverosion.kernels.topology import boundary_edges
 from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh
 
 __all__ = ["REPAIR_ORIENTATIONS", "BooleanOperation", "RepairIntersections", "repair_output"]

@@ -38,9 +38,18 @@ from pverosion.filters.base import (
     set_field_value,
     set_multiblock,
 )
-from pverosion.kernels.freeze_thaw import CORE, FreezeThawParameters, FreezeThawSimulation, PathRecord
-from pverosion.kernels.geometry import signed_volume
-from pverosion.kernels.seed_patterns import (
+from pverosion.kernels.mesh.geometry import signed_volume
+from pverosion.kernels.shards.freeze_thaw import (
+    CORE,
+    FreezeThawParameters,
+    FreezeThawSimulation,
+    FreezeThawSolver,
+    PathRecord,
+)
+from pverosion.kernels.shards.geometry import LinkMesh, cell_surfaces, cells_boundary, link_polygons
+from pverosion.kernels.shards.graph import ShardGraph as Graph
+from pverosion.kernels.shards.graph import build_shards
+from pverosion.kernels.shards.seed_patterns import (
     hex_column_seeds,
     inside_mesh,
     jittered_grid_seeds,
@@ -49,9 +58,6 @@ from pverosion.kernels.seed_patterns import (
     slab_seeds,
     uniform_seeds,
 )
-from pverosion.kernels.shard_geometry import LinkMesh, cell_surfaces, cells_boundary, link_polygons
-from pverosion.kernels.shards import ShardGraph as Graph
-from pverosion.kernels.shards import build_shards
 from pverosion.limits import check_memory, check_work
 
 __all__ = ["CORE_CHOICES", "PATTERNS", "FreezeThaw", "ShardGraph", "pattern_seeds", "shard_blocks"]
@@ -161,7 +167,7 @@ def shard_blocks(graph: Graph, *, solid: np.ndarray | None = None, core: np.ndar
     shards : bool
         Include the per-cell ``shards`` block (the heaviest).
     links : LinkMesh, optional
-        Precomputed :func:`~pverosion.kernels.shard_geometry.link_polygons`.
+        Precomputed :func:`~pverosion.kernels.shards.geometry.link_polygons`.
     """
     solid = np.ones(graph.n_cells, bool) if solid is None else solid
     core = np.zeros(graph.n_cells, bool) if core is None else core
@@ -321,11 +327,8 @@ class FreezeThaw(_ShardSource, TimeSteppedFilter):
 
     def __init__(self, **options):
         super().__init__(**options)
-        self._simulation: FreezeThawSimulation | None = None
-        self._sim_key: tuple | None = None
         self._resistance_field = None
         self._core_cells_function = None
-        self._step = 0
 
     def SetResistanceField(self, field) -> None:
         """Use a resistance field instead of the constant ``resistance``.
@@ -390,33 +393,22 @@ class FreezeThaw(_ShardSource, TimeSteppedFilter):
             core &= np.linalg.norm(graph.seeds - np.array([x, y, z]), axis=1) > r
         return core
 
-    def execute(self, inp, out) -> None:
-        """Advance (or restart) the cached simulation to the requested step and fill ``out``."""
-        step = self.requested_step()
+    def _new_solver(self, inp) -> FreezeThawSolver:
         # refused before the graph is built: the requested cell count sets the estimate
         per_step = self.get_option("paths_per_step")
         visits = 4.0 * self.get_option("cells") ** (1.0 / 3.0) + 1.0  # links a path crosses, about the diameter
         check_work(per_step * visits * 50.0, option="paths_per_step", what=f"{per_step} water paths")
         if self.get_option("record_paths"):
             check_memory(per_step * 64 * 16, option="paths_per_step", what=f"the record of {per_step} water paths")
-        graph = self._graph(inp)
-        key = (self._graph_key, self.GetMTime())
-        if self._simulation is None or self._sim_key != key or self._step > step:
-            self._simulation = self._new_simulation(graph)
-            self._sim_key = key
-            self._step = 0
-        sim = self._simulation
-        record = None
-        start = self._step
-        while self._step < step:
-            last = self._step == step - 1
-            record = sim.run(per_step, record=last and self.get_option("record_paths"))
-            self._step += 1
-            self.UpdateProgress((self._step - start) / max(step - start, 1))
+        simulation = self._new_simulation(self._graph(inp))
+        return FreezeThawSolver(simulation, paths_per_step=per_step, record_paths=self.get_option("record_paths"))
+
+    def _fill(self, solver: FreezeThawSolver, inp, out) -> None:
+        sim = solver.simulation
+        graph = sim.graph
         blocks = shard_blocks(graph, solid=sim.solid, core=sim.state == CORE, life=sim.life, exterior=sim.exterior,
                               shards=self.get_option("shards"), links=self._links)
         if self.get_option("record_paths"):
-            blocks["paths"] = _path_lines(graph, record) if record is not None else pv.PolyData()
+            blocks["paths"] = _path_lines(graph, solver.record) if solver.record is not None else pv.PolyData()
         _statistics(blocks["surface"], graph, sim.solid, sim.exterior, paths=sim.paths, breaks=sim.n_breaks)
         set_multiblock(out, blocks)
-        out.GetInformation().Set(out.DATA_TIME_STEP(), float(step))

@@ -30,11 +30,11 @@ from pverosion.filters.base import (
     set_multiblock,
 )
 from pverosion.filters.materials import grid_points
-from pverosion.kernels.materials import MaterialField
-from pverosion.kernels.pressure import LIQUID
-from pverosion.kernels.voxel_erosion import MODELS, ErosionParameters, VoxelErosionSolver
-from pverosion.kernels.voxel_fluid import ADVECTION_SCHEMES, VoxelFluid, cell_velocity
-from pverosion.kernels.voxelize import height_field_amount, voxelize_mesh
+from pverosion.kernels.materials.field import MaterialField
+from pverosion.kernels.voxel.erosion import MODELS, ErosionParameters, VoxelErosionSolver
+from pverosion.kernels.voxel.fluid import ADVECTION_SCHEMES, VoxelFluid, cell_velocity
+from pverosion.kernels.voxel.pressure import LIQUID
+from pverosion.kernels.voxel.voxelize import height_field_amount, voxelize_mesh
 from pverosion.limits import check_memory, check_work
 
 __all__ = [
@@ -50,7 +50,6 @@ __all__ = [
 
 EXTRACTORS = ("flying_edges", "marching_cubes")
 EMPTY, FULL, MAT = 0, 1, 2
-STAT_NAMES = ("solid", "dissolved", "drained", "eroded", "deposited", "water", "substeps", "iterations", "divergence")
 
 
 def _grid_array(image, name: str, *, required: bool = False, default: float = 0.0) -> np.ndarray:
@@ -273,7 +272,7 @@ def extract_material_surface(image, *, method: str = "flying_edges", iso: float 
 
 def voxel_solver(grid, *, params: ErosionParameters | None = None, source_velocity=(0.0, 0.0, 0.0),
                  **fluid_options) -> VoxelErosionSolver:
-    """A :class:`~pverosion.kernels.voxel_erosion.VoxelErosionSolver` for a voxel grid ImageData.
+    """A :class:`~pverosion.kernels.voxel.erosion.VoxelErosionSolver` for a voxel grid ImageData.
 
     Parameters
     ----------
@@ -282,7 +281,7 @@ def voxel_solver(grid, *, params: ErosionParameters | None = None, source_veloci
     params : ErosionParameters, optional
     source_velocity : (3,) float, default: (0, 0, 0)
     **fluid_options
-        ``viscosity``, ``tolerance``, ``cfl``, ... of :class:`~pverosion.kernels.voxel_fluid.VoxelFluid`.
+        ``viscosity``, ``tolerance``, ``cfl``, ... of :class:`~pverosion.kernels.voxel.fluid.VoxelFluid`.
 
     Raises
     ------
@@ -333,9 +332,9 @@ class VoxelErosion(TimeSteppedFilter):
 
     Each time step advances the water by ``time_step`` seconds (MAC-grid
     Navier–Stokes with a volume-of-fluid free surface, see
-    :mod:`pverosion.kernels.voxel_fluid`) and exchanges material at the
+    :mod:`pverosion.kernels.voxel.fluid`) and exchanges material at the
     water/material interface with the cohesive or cohesionless model (see
-    :mod:`pverosion.kernels.voxel_erosion`). The output is a MultiBlock of
+    :mod:`pverosion.kernels.voxel.erosion`). The output is a MultiBlock of
     the grid state (``state``) and the material's isosurface (``surface``).
     TIME_STEPS are 0..iterations; a later time continues from the cached
     state, an earlier one restarts.
@@ -374,10 +373,6 @@ class VoxelErosion(TimeSteppedFilter):
               advanced=True),
     )
 
-    def __init__(self, **options):
-        super().__init__(**options)
-        self._stats: dict[str, list[float]] = {}
-
     def _new_solver(self, inp) -> VoxelErosionSolver:
         velocity = parse_numbers(self.get_option("source_velocity"), "source_velocity", count=3)
         params = ErosionParameters(**{name: self.get_option(name) for name in (
@@ -389,32 +384,15 @@ class VoxelErosion(TimeSteppedFilter):
         check_memory(cells * BYTES_PER_VOXEL, option="input grid", what=f"the solver of {cells} voxels",
                      remedy="use coarser voxels")
         solver = voxel_solver(inp, params=params, source_velocity=velocity, viscosity=self.get_option("viscosity"),
-                              tolerance=self.get_option("tolerance"), advection=self.get_option("advection"))
+                              tolerance=self.get_option("tolerance"), advection=self.get_option("advection"),
+                              time_step=self.get_option("time_step"))
         _check_step_work(solver.fluid, cells, self.get_option("time_step"))
         return solver
 
-    def _record(self, solver: VoxelErosionSolver, figures: dict) -> None:
-        values = {"solid": float(solver.amount.sum()), "dissolved": float(solver.fluid.material.sum()),
-                  "drained": solver.drained_material, "water": float(solver.fluid.water.sum())}
-        for name in STAT_NAMES:
-            self._stats.setdefault(name, []).append(values.get(name, float(figures.get(name, 0.0))))
-
-    def execute(self, inp, out) -> None:
-        """Advance (or restart) the cached solver to the requested step and fill ``out``."""
-        step = self.requested_step()
-        solver, new = self.cached_solver(inp, step, self._new_solver)
-        if new:
-            self._stats = {}
-            self._record(solver, {})
-        start = solver.step_count
-        dt = self.get_option("time_step")
-        while solver.step_count < step:
-            self._record(solver, solver.step(dt))
-            self.UpdateProgress((solver.step_count - start) / max(step - start, 1))
+    def _fill(self, solver: VoxelErosionSolver, inp, out) -> None:
         state = self._state(inp, solver)
         surface = extract_material_surface(state, method=self.get_option("extraction"))
         set_multiblock(out, pv.MultiBlock({"state": state, "surface": surface}))
-        out.GetInformation().Set(out.DATA_TIME_STEP(), float(step))
 
     def _state(self, inp, solver: VoxelErosionSolver) -> pv.ImageData:
         state = pv.ImageData()
@@ -427,7 +405,7 @@ class VoxelErosion(TimeSteppedFilter):
             state.point_data[name] = values.ravel(order="F")
         velocity = cell_velocity(fluid.u, fluid.v, fluid.w)
         state.point_data["velocity"] = velocity.transpose(2, 1, 0, 3).reshape(-1, 3)
-        for name, series in self._stats.items():
+        for name, series in solver.statistics.items():
             set_field_value(state, f"voxel_{name}", series)
         set_field_value(state, "mass_error", solver.mass_error())
         return state

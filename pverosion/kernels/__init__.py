@@ -10,30 +10,30 @@ from importlib import import_module
 from typing import TYPE_CHECKING
 
 _LAZY = {
-    "CurvatureOperator": "curvature",
-    "CurvatureResult": "curvature",
-    "principal_curvatures": "curvature",
-    "average_edge_length": "geometry",
-    "corner_areas": "geometry",
-    "face_normals": "geometry",
-    "point_areas": "geometry",
-    "signed_volume": "geometry",
-    "vertex_normals": "geometry",
-    "laplacian_vectors": "laplacian",
-    "uniform_laplacian": "laplacian",
-    "normalize_curvature": "normalize",
-    "normalize_shifted": "normalize",
-    "normalize_symmetric": "normalize",
-    "Orientation": "orientation",
-    "orient_faces": "orientation",
-    "winding_number": "orientation",
-    "EdgeTopology": "topology",
-    "boundary_edges": "topology",
-    "boundary_vertices": "topology",
-    "edge_topology": "topology",
-    "locality_order": "topology",
-    "one_ring": "topology",
-    "vertex_face_incidence": "topology",
+    "CurvatureOperator": "curvature.operator",
+    "CurvatureResult": "curvature.operator",
+    "principal_curvatures": "curvature.operator",
+    "average_edge_length": "mesh.geometry",
+    "corner_areas": "mesh.geometry",
+    "face_normals": "mesh.geometry",
+    "point_areas": "mesh.geometry",
+    "signed_volume": "mesh.geometry",
+    "vertex_normals": "mesh.geometry",
+    "laplacian_vectors": "mesh.laplacian",
+    "uniform_laplacian": "mesh.laplacian",
+    "normalize_curvature": "curvature.normalize",
+    "normalize_shifted": "curvature.normalize",
+    "normalize_symmetric": "curvature.normalize",
+    "Orientation": "mesh.orientation",
+    "orient_faces": "mesh.orientation",
+    "winding_number": "mesh.orientation",
+    "EdgeTopology": "mesh.topology",
+    "boundary_edges": "mesh.topology",
+    "boundary_vertices": "mesh.topology",
+    "edge_topology": "mesh.topology",
+    "locality_order": "mesh.topology",
+    "one_ring": "mesh.topology",
+    "vertex_face_incidence": "mesh.topology",
     "InvalidMeshError": "validation",
     "as_faces": "validation",
     "as_points": "validation",
@@ -43,8 +43,9 @@ _LAZY = {
 __all__ = sorted(_LAZY)
 
 if TYPE_CHECKING:
-    from pverosion.kernels.curvature import CurvatureOperator, CurvatureResult, principal_curvatures
-    from pverosion.kernels.geometry import (
+    from pverosion.kernels.curvature.normalize import normalize_curvature, normalize_shifted, normalize_symmetric
+    from pverosion.kernels.curvature.operator import CurvatureOperator, CurvatureResult, principal_curvatures
+    from pverosion.kernels.mesh.geometry import (
         average_edge_length,
         corner_areas,
         face_normals,
@@ -52,10 +53,9 @@ if TYPE_CHECKING:
         signed_volume,
         vertex_normals,
     )
-    from pverosion.kernels.laplacian import laplacian_vectors, uniform_laplacian
-    from pverosion.kernels.normalize import normalize_curvature, normalize_shifted, normalize_symmetric
-    from pverosion.kernels.orientation import Orientation, orient_faces, winding_number
-    from pverosion.kernels.topology import (
+    from pverosion.kernels.mesh.laplacian import laplacian_vectors, uniform_laplacian
+    from pverosion.kernels.mesh.orientation import Orientation, orient_faces, winding_number
+    from pverosion.kernels.mesh.topology import (
         EdgeTopology,
         boundary_edges,
         boundary_vertices,

@@ -4,7 +4,7 @@ Face loops that add into per-vertex sums are split into a fixed number of
 contiguous face chunks, each with its own accumulator; the chunk sums are
 then added in chunk order. The result is bit-identical whatever the number
 of threads, and no atomics are needed. Sorting faces by their smallest vertex
-(:func:`pverosion.kernels.topology.locality_order`) keeps each chunk's
+(:func:`pverosion.kernels.mesh.topology.locality_order`) keeps each chunk's
 writes local in memory.
 """
 

@@ -1,0 +1,110 @@
+"""Filters over a solver that moves the vertices of a closed mesh (weathering, hydraulic erosion).
+
+:class:`MeshSolverFilter` is the time-stepped filter of every stage built on
+:class:`~pverosion.kernels.solver.mesh_evolution.GuardedMeshSolver`, and :func:`mesh_solver_output`
+fills its output mesh.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from vtkmodules.util import numpy_support
+from vtkmodules.vtkCommonCore import vtkPoints
+
+from pverosion.filters.base import (
+    TimeSteppedFilter,
+    polydata_triangles,
+    replace_triangles,
+    set_field_value,
+    set_point_array,
+)
+from pverosion.kernels.materials.erodibility import Erodibility
+from pverosion.kernels.mesh.topology import EdgeTopology, edge_topology
+from pverosion.kernels.solver.mesh_evolution import GuardedMeshSolver
+from pverosion.kernels.validation import InvalidMeshError
+
+__all__ = ["MeshSolverFilter", "mesh_solver_output"]
+
+
+def mesh_solver_output(solver: GuardedMeshSolver, source, out, *, prefix: str = "weathering") -> None:
+    """Fill vtkPolyData ``out`` with the solver's current mesh and its arrays.
+
+    Point arrays of ``source`` are carried to the surviving vertices. Adds
+    ``mean_curvature``, ``displacement`` (cumulative vector), ``erosion_depth``
+    (cumulative displacement into the original surface, along the original
+    inward normal) and, as field data, one ``<prefix>_<statistic>`` series
+    per step (step 0 first), ``retries`` and ``frozen_vertices``. Used by
+    every stage built on :class:`~pverosion.kernels.solver.mesh_evolution.GuardedMeshSolver`.
+    """
+    out.ShallowCopy(source)
+    points = vtkPoints()  # a new object: the shallow copy shares the input's points
+    points.SetData(numpy_support.numpy_to_vtk(solver.points, deep=True))
+    out.SetPoints(points)
+    replace_triangles(out, solver.faces)
+    src_pd, out_pd = source.GetPointData(), out.GetPointData()
+    out_pd.Initialize()
+    for k in range(src_pd.GetNumberOfArrays()):
+        arr = src_pd.GetAbstractArray(k)
+        if arr is None or arr.GetName() is None or not hasattr(arr, "GetNumberOfComponents"):
+            continue
+        values = numpy_support.vtk_to_numpy(arr)
+        carried = numpy_support.numpy_to_vtk(np.ascontiguousarray(values[solver.ids]), deep=True)
+        carried.SetName(arr.GetName())
+        out_pd.AddArray(carried)
+    if len(solver.faces) != source.GetNumberOfCells():
+        out.GetCellData().Initialize()  # faces were collapsed: per-face input data no longer applies
+    set_point_array(out, "mean_curvature", solver.mean_curvature())
+    set_point_array(out, "displacement", solver.displacement)
+    set_point_array(out, "erosion_depth", solver.erosion_depth())
+    out_pd.SetActiveScalars("mean_curvature")
+    for name, series in solver.statistics.items():
+        set_field_value(out, f"{prefix}_{name}", series)
+    set_field_value(out, "retries", solver.retries)
+    set_field_value(out, "frozen_vertices", solver.frozen)
+    set_field_value(out, "topology_repairs", solver.repairs)
+
+
+class MeshSolverFilter(TimeSteppedFilter):
+    """A stage over a :class:`~pverosion.kernels.solver.mesh_evolution.GuardedMeshSolver`, kept between updates.
+
+    Subclasses build the solver in ``_new_solver(inp)`` and fill the output in
+    ``_fill(solver, inp, out)``. Asking for a later time continues the cached
+    solver; an earlier time, a new input or changed options start over. The
+    erodibility is a Python value (array, callable, material field) or the
+    ``erodibility_array`` option.
+    """
+
+    def __init__(self, *, erodibility: Erodibility = None, **options):
+        super().__init__(**options)
+        self._erodibility = erodibility
+
+    @staticmethod
+    def _surface(inp) -> tuple[np.ndarray, np.ndarray, EdgeTopology]:
+        """Points (V, 3), triangles (F, 3) and edge topology of ``inp``; ``InvalidMeshError`` if it is non-manifold.
+
+        A surface that evolves needs every edge between at most two faces:
+        curvature and the self-intersection guard are undefined elsewhere.
+        """
+        points, faces = polydata_triangles(inp)
+        topology = edge_topology(np.asarray(faces, np.int64), len(points))
+        if topology.n_nonmanifold_edges:
+            raise InvalidMeshError(f"mesh has {topology.n_nonmanifold_edges} non-manifold edges (shared by more than "
+                                   "two faces): repair it first (pverosion repair, or pverosion.repair)")
+        return points, faces, topology
+
+    def set_erodibility(self, erodibility: Erodibility) -> None:
+        """Per-vertex array (V,) or callable of points (N, 3) -> (N,); None for uniform."""
+        self._erodibility = erodibility
+        self.Modified()
+
+    def _erodibility_for(self, inp):
+        name = self.get_option("erodibility_array")
+        if not name:
+            return self._erodibility
+        arr = inp.GetPointData().GetArray(name)
+        if arr is None:
+            raise ValueError(f"erodibility_array {name!r} is not a point array of the input")
+        values = numpy_support.vtk_to_numpy(arr)
+        if values.ndim != 1:
+            raise ValueError(f"erodibility_array {name!r} must have one component; got {values.shape[1]}")
+        return values

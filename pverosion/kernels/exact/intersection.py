@@ -1,0 +1,703 @@
+"""Triangle-triangle intersection detection for triangle meshes.
+
+Broad phase: every triangle's bounding box is entered into the cells of a
+uniform grid stored as a spatial hash (so memory follows the surface, not
+the bounding volume); two triangles are compared only when they share a cell,
+and only in the first cell they share, so every pair is tested once.
+Narrow phase: Möller's (1997) interval test on the line where the two planes
+meet, with the plane side of each vertex taken from the sign of an orientation
+determinant (snapped to zero within rounding of the plane), and an
+edge-crossing/containment test for coplanar pairs. Touching counts as
+intersecting.
+
+Faces that share a vertex are adjacent and never reported; degenerate faces
+(zero area) are skipped.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges
+from pverosion.kernels.tolerances import COPLANAR
+from pverosion.kernels.validation import as_triangle_mesh
+
+__all__ = ["candidate_pairs", "intersecting_faces", "intersecting_pairs", "spatial_order", "triangles_intersect"]
+
+
+
+
+@njit(cache=True, error_model="numpy")
+def _side(a, b, c, p):
+    """Orientation determinant of ``p`` against the plane through a, b, c; 0 when within rounding of the plane.
+
+    Points of a flat but tilted wall are rarely exactly coplanar in floating
+    point; a distance below :data:`COPLANAR` times the size of the configuration
+    is taken as zero, so such pairs go to the coplanar test.
+    """
+    ab, ac, ap = v3.sub(b, a), v3.sub(c, a), v3.sub(p, a)
+    n = v3.cross(ab, ac)
+    d = v3.dot(n, ap)
+    size2 = max(v3.dot(ab, ab), v3.dot(ac, ac), v3.dot(ap, ap))
+    if d * d <= COPLANAR * COPLANAR * v3.dot(n, n) * size2:
+        return 0.0
+    return d
+
+
+@njit(cache=True, error_model="numpy")
+def _interval(p0, p1, p2, d0, d1, d2):
+    """Sorted parameter interval of a triangle on the intersection line.
+
+    ``p*`` are the vertex projections on the line, ``d*`` their signed
+    distances to the other plane (not all of one strict sign, not all zero).
+    """
+    if d0 * d1 > 0.0:  # p2 alone on its side
+        a = p2 + (p0 - p2) * d2 / (d2 - d0)
+        b = p2 + (p1 - p2) * d2 / (d2 - d1)
+    elif d0 * d2 > 0.0:  # p1 alone
+        a = p1 + (p0 - p1) * d1 / (d1 - d0)
+        b = p1 + (p2 - p1) * d1 / (d1 - d2)
+    elif d1 * d2 > 0.0 or d0 != 0.0:  # p0 alone
+        a = p0 + (p1 - p0) * d0 / (d0 - d1)
+        b = p0 + (p2 - p0) * d0 / (d0 - d2)
+    elif d1 != 0.0:
+        a = p1 + (p0 - p1) * d1 / (d1 - d0)
+        b = p1 + (p2 - p1) * d1 / (d1 - d2)
+    else:
+        a = p2 + (p0 - p2) * d2 / (d2 - d0)
+        b = p2 + (p1 - p2) * d2 / (d2 - d1)
+    return min(a, b), max(a, b)
+
+
+@njit(cache=True, error_model="numpy")
+def _orient2d(a, b, c):
+    return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+
+
+@njit(cache=True, error_model="numpy")
+def _segments_cross_2d(a, b, c, d):
+    """Closed 2D segments ab and cd share a point."""
+    o1, o2 = _orient2d(a, b, c), _orient2d(a, b, d)
+    o3, o4 = _orient2d(c, d, a), _orient2d(c, d, b)
+    if ((o1 > 0 and o2 < 0) or (o1 < 0 and o2 > 0)) and ((o3 > 0 and o4 < 0) or (o3 < 0 and o4 > 0)):
+        return True
+    if o1 == 0 and o2 == 0:  # collinear: overlap of projections
+        for k in range(2):
+            if max(min(a[k], b[k]), min(c[k], d[k])) > min(max(a[k], b[k]), max(c[k], d[k])):
+                return False
+        return True
+    return (
+        (o1 == 0 and _on_segment(a, b, c))
+        or (o2 == 0 and _on_segment(a, b, d))
+        or (o3 == 0 and _on_segment(c, d, a))
+        or (o4 == 0 and _on_segment(c, d, b))
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def _on_segment(a, b, p):
+    return min(a[0], b[0]) <= p[0] <= max(a[0], b[0]) and min(a[1], b[1]) <= p[1] <= max(a[1], b[1])
+
+
+@njit(cache=True, error_model="numpy")
+def _inside_2d(p, a, b, c):
+    o1, o2, o3 = _orient2d(a, b, p), _orient2d(b, c, p), _orient2d(c, a, p)
+    return (o1 >= 0 and o2 >= 0 and o3 >= 0) or (o1 <= 0 and o2 <= 0 and o3 <= 0)
+
+
+@njit(cache=True, error_model="numpy")
+def _coplanar(normal, p0, p1, p2, q0, q1, q2):
+    """Intersection test of two coplanar triangles, projected along the normal's largest axis."""
+    ax, ay, az = abs(normal[0]), abs(normal[1]), abs(normal[2])
+    if ax >= ay and ax >= az:
+        i, j = 1, 2
+    elif ay >= az:
+        i, j = 0, 2
+    else:
+        i, j = 0, 1
+    P = ((p0[i], p0[j]), (p1[i], p1[j]), (p2[i], p2[j]))
+    Q = ((q0[i], q0[j]), (q1[i], q1[j]), (q2[i], q2[j]))
+    for a in range(3):
+        for b in range(3):
+            if _segments_cross_2d(P[a], P[(a + 1) % 3], Q[b], Q[(b + 1) % 3]):
+                return True
+    return _inside_2d(P[0], Q[0], Q[1], Q[2]) or _inside_2d(Q[0], P[0], P[1], P[2])
+
+
+@njit(cache=True, error_model="numpy")
+def tri_tri(p0, p1, p2, q0, q1, q2):
+    """Whether closed triangles (p0, p1, p2) and (q0, q1, q2), given as 3-tuples, meet."""
+    dp0, dp1, dp2 = _side(q0, q1, q2, p0), _side(q0, q1, q2, p1), _side(q0, q1, q2, p2)
+    if (dp0 > 0 and dp1 > 0 and dp2 > 0) or (dp0 < 0 and dp1 < 0 and dp2 < 0):
+        return False
+    dq0, dq1, dq2 = _side(p0, p1, p2, q0), _side(p0, p1, p2, q1), _side(p0, p1, p2, q2)
+    if (dq0 > 0 and dq1 > 0 and dq2 > 0) or (dq0 < 0 and dq1 < 0 and dq2 < 0):
+        return False
+    n1 = v3.cross(v3.sub(p1, p0), v3.sub(p2, p0))
+    if dp0 == 0.0 and dp1 == 0.0 and dp2 == 0.0:
+        return _coplanar(n1, p0, p1, p2, q0, q1, q2)
+    n2 = v3.cross(v3.sub(q1, q0), v3.sub(q2, q0))
+    line = v3.cross(n1, n2)
+    # project on the coordinate axis closest to the line direction (order is preserved)
+    ax, ay, az = abs(line[0]), abs(line[1]), abs(line[2])
+    k = 0 if ax >= ay and ax >= az else (1 if ay >= az else 2)
+    a1, b1 = _interval(p0[k], p1[k], p2[k], dp0, dp1, dp2)
+    a2, b2 = _interval(q0[k], q1[k], q2[k], dq0, dq1, dq2)
+    return max(a1, a2) <= min(b1, b2)
+
+
+def triangles_intersect(p, q) -> bool:
+    """Whether two closed triangles in 3D meet (touching counts).
+
+    Parameters
+    ----------
+    p, q : array_like, shape (3, 3)
+        The vertices of each triangle, one per row.
+
+    Returns
+    -------
+    bool
+    """
+    p = np.asarray(p, dtype=np.float64)
+    q = np.asarray(q, dtype=np.float64)
+    if p.shape != (3, 3) or q.shape != (3, 3):
+        raise ValueError(f"triangles must have shape (3, 3); got {p.shape} and {q.shape}")
+    return bool(tri_tri(v3.row(p, 0), v3.row(p, 1), v3.row(p, 2), v3.row(q, 0), v3.row(q, 1), v3.row(q, 2)))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _key(ix, iy, iz):
+    return (ix << 42) | (iy << 21) | iz
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _spread(x):
+    """Spread the low 21 bits of x two bits apart (Morton code helper)."""
+    x &= 0x1FFFFF
+    x = (x | (x << 32)) & 0x1F00000000FFFF
+    x = (x | (x << 16)) & 0x1F0000FF0000FF
+    x = (x | (x << 8)) & 0x100F00F00F00F00F
+    x = (x | (x << 4)) & 0x10C30C30C30C30C3
+    x = (x | (x << 2)) & 0x1249249249249249
+    return x
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _morton(ix, iy, iz):
+    return (_spread(ix) << 2) | (_spread(iy) << 1) | _spread(iz)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _hash(ix, iy, iz, size):
+    """Bucket of a cell: its Morton code modulo the table size, so that cells near in
+    space mostly land in buckets near in memory."""
+    return _morton(ix, iy, iz) % size
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _box_range(points, faces, lo, hi, ok, side, start, stop):
+    """Boxes of faces ``start`` to ``stop``, whether they are non-degenerate and their largest side."""
+    for f in range(start, stop):
+        p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
+        for d in range(3):
+            lo[f, d] = min(p0[d], p1[d], p2[d])
+            hi[f, d] = max(p0[d], p1[d], p2[d])
+        c = v3.cross(v3.sub(p1, p0), v3.sub(p2, p0))
+        ok[f] = v3.dot(c, c) > 0.0
+        if ok[f]:
+            side[f] = max(hi[f, 0] - lo[f, 0], hi[f, 1] - lo[f, 1], hi[f, 2] - lo[f, 2])
+
+
+@njit(cache=True, error_model="numpy")
+def _grid_frame(lo, ok, side):
+    """Origin (lowest box corner), cell edge and number of the non-degenerate faces."""
+    n_ok = 0
+    total = 0.0
+    origin = np.full(3, np.inf)
+    for f in range(ok.shape[0]):
+        if ok[f]:
+            n_ok += 1
+            total += side[f]
+            for d in range(3):
+                origin[d] = min(origin[d], lo[f, d])
+    # cell edge: the mean of the boxes' largest side, so a face covers a few cells
+    h = total / n_ok if n_ok > 0 and total > 0.0 else 1.0
+    return origin, h, n_ok
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _key_range(lo, ok, origin, h, keys, start, stop):
+    """Morton keys of the lowest grid cells of the boxes of faces ``start`` to ``stop``."""
+    for f in range(start, stop):
+        if ok[f]:
+            keys[f] = _morton(
+                int((lo[f, 0] - origin[0]) / h), int((lo[f, 1] - origin[1]) / h), int((lo[f, 2] - origin[2]) / h)
+            )
+
+
+def _face_boxes(points: np.ndarray, faces: np.ndarray) -> tuple:
+    """Boxes of the non-degenerate faces, the grid cell edge, origin and Morton keys."""
+    n = faces.shape[0]
+    lo = np.empty((n, 3))
+    hi = np.empty((n, 3))
+    ok = np.zeros(n, np.bool_)
+    side = np.zeros(n)
+    for_ranges(_box_range, n, points, faces, lo, hi, ok, side)
+    origin, h, n_ok = _grid_frame(lo, ok, side)
+    keys = np.zeros(n, np.int64)
+    for_ranges(_key_range, n, lo, ok, origin, h, keys)
+    return lo, hi, ok, origin, 1.0 / h, keys, n_ok
+
+
+@njit(cache=True, error_model="numpy")
+def _cell_range(lo, hi, f, origin, inv_h):
+    return (
+        int((lo[f, 0] - origin[0]) * inv_h),
+        int((lo[f, 1] - origin[1]) * inv_h),
+        int((lo[f, 2] - origin[2]) * inv_h),
+        int((hi[f, 0] - origin[0]) * inv_h),
+        int((hi[f, 1] - origin[1]) * inv_h),
+        int((hi[f, 2] - origin[2]) * inv_h),
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def _build_grid(lo, hi, ok, origin, inv_h, size):
+    """Spatial hash: the faces covering each bucket's cells, with each entry's packed cell key."""
+    n = lo.shape[0]
+    start = np.zeros(size + 1, np.int64)
+    for f in range(n):
+        if not ok[f]:
+            continue
+        x0, y0, z0, x1, y1, z1 = _cell_range(lo, hi, f, origin, inv_h)
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
+                for iz in range(z0, z1 + 1):
+                    start[_hash(ix, iy, iz, size) + 1] += 1
+    for b in range(size):
+        start[b + 1] += start[b]
+    entries = np.empty(start[size], np.int64)
+    cells = np.empty(start[size], np.int64)
+    fill = start[:-1].copy()
+    for f in range(n):
+        if not ok[f]:
+            continue
+        x0, y0, z0, x1, y1, z1 = _cell_range(lo, hi, f, origin, inv_h)
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
+                for iz in range(z0, z1 + 1):
+                    b = _hash(ix, iy, iz, size)
+                    entries[fill[b]] = f
+                    cells[fill[b]] = _key(ix, iy, iz)
+                    fill[b] += 1
+    return start, entries, cells
+
+
+@njit(cache=True, error_model="numpy")
+def _share_vertex(faces, f, g):
+    for a in range(3):
+        for b in range(3):
+            if faces[f, a] == faces[g, b]:
+                return True
+    return False
+
+
+@njit(cache=True, error_model="numpy")
+def _shared_vertices(faces, f, g):
+    n = 0
+    for a in range(3):
+        for b in range(3):
+            if faces[f, a] == faces[g, b]:
+                n += 1
+    return n
+
+
+@njit(cache=True, error_model="numpy")
+def _pair_hits(points, faces, lo, hi, f, g):
+    """Test pair (f, g): boxes, adjacency, then the triangles."""
+    for d in range(3):
+        if lo[f, d] > hi[g, d] or lo[g, d] > hi[f, d]:
+            return False
+    if _share_vertex(faces, f, g):
+        return False
+    return tri_tri(
+        v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2]),
+        v3.row(points, faces[g, 0]), v3.row(points, faces[g, 1]), v3.row(points, faces[g, 2]),
+    )
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _hits_range(points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells, size, hits, first, last):
+    """Flag in ``hits`` the faces that meet a non-adjacent face, testing the pairs of queried faces ``first`` to
+    ``last`` once (both faces of a hit are flagged; another range may flag the same face, with the same value)."""
+    for f in range(first, last):
+        if not (ok[f] and query[f]):
+            continue
+        fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
+        for ix in range(fx0, fx1 + 1):
+            for iy in range(fy0, fy1 + 1):
+                for iz in range(fz0, fz1 + 1):
+                    b = _hash(ix, iy, iz, size)
+                    key = _key(ix, iy, iz)
+                    for e in range(start[b], start[b + 1]):
+                        g = entries[e]
+                        if cells[e] != key or g == f or (g < f and query[g]):
+                            continue  # another cell hashed here, f itself, or a pair seen from g
+                        # visit the pair only in the first cell both boxes cover
+                        if (
+                            max(fx0, int((lo[g, 0] - origin[0]) * inv_h)) != ix
+                            or max(fy0, int((lo[g, 1] - origin[1]) * inv_h)) != iy
+                            or max(fz0, int((lo[g, 2] - origin[2]) * inv_h)) != iz
+                        ):
+                            continue
+                        if _pair_hits(points, faces, lo, hi, f, g):
+                            hits[f] = True
+                            hits[g] = True  # same value from any thread: a benign race
+
+
+def _count_hits(points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells, size) -> np.ndarray:
+    """Flag the faces that meet a non-adjacent face, testing the pairs with a queried face once."""
+    hits = np.zeros(faces.shape[0], np.bool_)
+    for_ranges(_hits_range, faces.shape[0], points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells,
+               size, hits, min_items=HEAVY_ITEMS_PER_RANGE)
+    return hits
+
+
+@njit(cache=True, error_model="numpy")
+def _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
+    """Whether cell (ix, iy, iz) is the lowest cell that the boxes of f and g both cover."""
+    fx0, fy0, fz0, _, _, _ = _cell_range(lo, hi, f, origin, inv_h)
+    gx0, gy0, gz0, _, _, _ = _cell_range(lo, hi, g, origin, inv_h)
+    return max(fx0, gx0) == ix and max(fy0, gy0) == iy and max(fz0, gz0) == iz
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _side_range(points, faces, h, other, m, o, shared):
+    """Bounds of m . (p - o) over the vertices p of face h (but those of face ``other`` when ``shared``), widened
+    by far more than their rounding (below 4 eps |m|_1 |p - o|_1)."""
+    m1 = abs(m[0]) + abs(m[1]) + abs(m[2])
+    lo, hi = np.inf, -np.inf
+    for t in range(3):
+        v = faces[h, t]
+        if shared and (v == faces[other, 0] or v == faces[other, 1] or v == faces[other, 2]):
+            continue
+        d = v3.sub(v3.row(points, v), o)
+        s = v3.dot(m, d)
+        tol = 1e-12 * m1 * (abs(d[0]) + abs(d[1]) + abs(d[2]))
+        lo, hi = min(lo, s - tol), max(hi, s + tol)
+    return lo, hi
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _plane_separates(points, faces, f, g, m, o, shared):
+    """Whether the plane through point ``o`` with normal ``m`` has face f strictly on one side and face g strictly
+    on the other (but for their shared vertex ``o`` when ``shared``), by more than the rounding of the side values.
+    The plane is defined by these floats exactly, so this never separates faces that meet (but at ``o``)."""
+    lo_f, hi_f = _side_range(points, faces, f, g, m, o, shared)
+    lo_g, hi_g = _side_range(points, faces, g, f, m, o, shared)
+    if shared:
+        return (hi_f < 0.0 < lo_g) or (hi_g < 0.0 < lo_f)
+    return hi_f < lo_g or hi_g < lo_f
+
+
+@njit(cache=True, error_model="numpy")
+def _apart_by_a_plane(points, faces, f, g, shared):
+    """Whether a separating plane shows that faces f and g meet at most in their shared vertex (``shared`` = 1).
+
+    Faces in a common plane, or sharing a vertex, pass the tests of plane sides; the planes tried here separate
+    most of them: the plane between the centroids; the planes through the edges of either face perpendicular to
+    it (through an edge at the shared vertex, turned a little so that the edge's far end lies strictly on its
+    face's side)."""
+    m = (0.0, 0.0, 0.0)
+    o = v3.row(points, faces[f, 0])
+    for t in range(3):
+        m = v3.add(m, v3.sub(v3.row(points, faces[g, t]), v3.row(points, faces[f, t])))
+        if shared and (faces[f, t] == faces[g, 0] or faces[f, t] == faces[g, 1] or faces[f, t] == faces[g, 2]):
+            o = v3.row(points, faces[f, t])
+    if _plane_separates(points, faces, f, g, m, o, shared):
+        return True
+    for side in range(2):
+        h = np.int64(f) if side == 0 else np.int64(g)
+        other = np.int64(g) if side == 0 else np.int64(f)
+        p0, p1, p2 = v3.row(points, faces[h, 0]), v3.row(points, faces[h, 1]), v3.row(points, faces[h, 2])
+        c = v3.cross(v3.sub(p1, p0), v3.sub(p2, p0))
+        for i in range(3):
+            a, b = faces[h, i], faces[h, (i + 1) % 3]
+            e = v3.sub(v3.row(points, b), v3.row(points, a))
+            m = v3.cross(e, c)  # in h's plane, away from h
+            if not shared:
+                if _plane_separates(points, faces, f, g, m, v3.row(points, a), 0):
+                    return True
+                continue
+            m1 = abs(m[0]) + abs(m[1]) + abs(m[2])
+            e1 = abs(e[0]) + abs(e[1]) + abs(e[2])
+            turn = 1e-9 * m1 * e1 / v3.dot(e, e)
+            for end in range(2):
+                v, far = (a, e) if end == 0 else (b, v3.scale(e, -1.0))
+                if v == faces[other, 0] or v == faces[other, 1] or v == faces[other, 2]:
+                    if _plane_separates(points, faces, f, g, v3.sub(m, v3.scale(far, turn)), v3.row(points, v), 1):
+                        return True
+    return False
+
+
+@njit(cache=True, error_model="numpy")
+def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size, f,
+                    out, n_out):
+    """Faces g whose boxes meet f's box, that share no edge with f, (with groups) are in another group, and
+    that neither lies strictly on one side of the other's plane nor of a plane of :func:`_apart_by_a_plane`
+    (apart from a shared vertex): g > f, or with a
+    query any g not queried before f. Written to ``out`` as (min, max) from ``n_out`` on when it is large
+    enough. Returns the count."""
+    fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
+    for ix in range(fx0, fx1 + 1):
+        for iy in range(fy0, fy1 + 1):
+            for iz in range(fz0, fz1 + 1):
+                b = _hash(ix, iy, iz, size)
+                key = _key(ix, iy, iz)
+                for e in range(start[b], start[b + 1]):
+                    g = entries[e]
+                    # with a query: the pairs of queried faces f with any g, each pair once
+                    if g == f or (g < f and (query.shape[0] == 0 or query[g])):
+                        continue
+                    if cells[e] != key or not _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
+                        continue
+                    if group.shape[0] and group[f] == group[g]:
+                        continue
+                    overlap = True
+                    for d in range(3):
+                        if lo[f, d] > hi[g, d] or lo[g, d] > hi[f, d]:
+                            overlap = False
+                    shared = _shared_vertices(faces, f, g)
+                    if not overlap or shared > 1:
+                        continue
+                    # faces that share a vertex meet beyond it only when neither has its other two vertices on
+                    # one side of the other's plane
+                    if (_one_side(points, faces, planes, f, g, shared)
+                            or _one_side(points, faces, planes, g, f, shared)
+                            or _apart_by_a_plane(points, faces, f, g, shared)):
+                        continue
+                    if n_out < out.shape[0]:
+                        out[n_out, 0] = min(f, g)
+                        out[n_out, 1] = max(f, g)
+                    n_out += 1
+    return n_out
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _plane_range(points, faces, out, start, stop):
+    """Rows ``start`` to ``stop`` of :func:`_face_planes`."""
+    for f in range(start, stop):
+        p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
+        n = v3.cross(v3.sub(p1, p0), v3.sub(p2, p0))
+        length = v3.norm(n)
+        if length == 0.0:
+            out[f, 4] = np.inf
+            continue
+        n = v3.scale(n, 1.0 / length)
+        out[f, 0], out[f, 1], out[f, 2] = n
+        out[f, 3] = v3.dot(n, p0)
+        scale = 0.0
+        for p in (p0, p1, p2):
+            scale = max(scale, abs(p[0]) + abs(p[1]) + abs(p[2]))
+        out[f, 4] = 1e-9 * scale  # far above the rounding of n . p - d for the points near the face
+
+
+def _face_planes(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit normal, offset and a bound of the rounding of plane distances of every face: (F, 5)."""
+    out = np.zeros((faces.shape[0], 5))
+    for_ranges(_plane_range, faces.shape[0], points, faces, out)
+    return out
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _one_side(points, faces, planes, f, g, shared):
+    """Whether face g lies strictly on one side of face f's plane, by more than the rounding (a float test that
+    never rejects a pair an exact test would call touching); with ``shared`` = 1, whether its two vertices that
+    are not f's do."""
+    above = below = 0
+    for k in range(3):
+        if shared and (faces[g, k] == faces[f, 0] or faces[g, k] == faces[f, 1] or faces[g, k] == faces[f, 2]):
+            continue
+        p = v3.row(points, faces[g, k])
+        d = planes[f, 0] * p[0] + planes[f, 1] * p[1] + planes[f, 2] * p[2] - planes[f, 3]
+        tol = planes[f, 4] + 1e-9 * (abs(p[0]) + abs(p[1]) + abs(p[2]))
+        if d > tol:
+            above += 1
+        elif d < -tol:
+            below += 1
+    return above == 3 - shared or below == 3 - shared
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _pair_count_range(points, faces, planes, lo, hi, ok, group, query, origin, inv_h, start, entries, cells, size,
+                      count, first, last):
+    """``count[f + 1]``: the number of pairs of face f, for faces ``first`` to ``last``."""
+    none = np.empty((0, 2), np.int64)
+    for f in range(first, last):
+        if ok[f] and (query.shape[0] == 0 or query[f]):
+            count[f + 1] = _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start,
+                                           entries, cells, size, f, none, np.int64(0))
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _pair_fill_range(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size, count,
+                     out, first, last):
+    """The pairs of faces ``first`` to ``last``, at rows ``count[f]`` to ``count[f + 1]`` of ``out``."""
+    for f in range(first, last):
+        if count[f + 1] > count[f]:
+            rows = out[count[f]:count[f + 1]]
+            _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size,
+                            f, rows, np.int64(0))
+
+
+def _box_pairs(points, faces, planes, lo, hi, ok, group, query, origin, inv_h, start, entries, cells,
+               size) -> np.ndarray:
+    """All face pairs (f < g) of :func:`candidate_pairs`, grouped by the queried face (by f without a query):
+    (K, 2)."""
+    n = faces.shape[0]
+    count = np.zeros(n + 1, np.int64)
+    for_ranges(_pair_count_range, n, points, faces, planes, lo, hi, ok, group, query, origin, inv_h, start, entries,
+               cells, size, count, min_items=HEAVY_ITEMS_PER_RANGE)
+    np.cumsum(count, out=count)
+    out = np.empty((count[n], 2), np.int64)
+    for_ranges(_pair_fill_range, n, points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells,
+               size, count, out, min_items=HEAVY_ITEMS_PER_RANGE)
+    return out
+
+
+def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
+    """Pairs of non-degenerate faces that may meet and share no edge (broad phase).
+
+    Their bounding boxes meet, and neither face lies on one side of the
+    other's plane by more than a generous bound of the rounding (so every
+    pair that touches in exact arithmetic is kept). Faces that share one
+    vertex are kept only when neither has its two other vertices on one side
+    of the other's plane: they may meet beyond the shared vertex. Faces in a
+    common plane (or sharing a vertex) are dropped when a plane through an
+    edge of either, between their centroids, or through the shared vertex
+    has them strictly on its two sides by more than the rounding.
+
+    Parameters
+    ----------
+    points : array_like, shape (V, 3)
+    faces : array_like, shape (F, 3)
+    group : array_like of int, shape (F,), optional
+        Only pairs of faces in different groups (e.g. the input mesh of each
+        face); by default all pairs.
+    query : array_like of bool, shape (F,), optional
+        Only pairs with at least one of these faces; by default all pairs.
+
+    Returns
+    -------
+    numpy.ndarray, shape (K, 2), int64
+        Face pairs ``(f, g)`` with ``f < g``, sorted by ``f`` (without a
+        query).
+    """
+    pts, fcs = as_triangle_mesh(points, faces)
+    grp = np.zeros(0, np.int64) if group is None else np.asarray(group, dtype=np.int64)
+    if group is not None and grp.shape != (len(fcs),):
+        raise ValueError(f"group must have shape ({len(fcs)},); got {grp.shape}")
+    wanted = np.zeros(0, bool) if query is None else np.asarray(query, dtype=bool)
+    if query is not None and wanted.shape != (len(fcs),):
+        raise ValueError(f"query must have shape ({len(fcs)},); got {wanted.shape}")
+    lo, hi, ok, origin, inv_h, _, n_ok = _face_boxes(pts, fcs)
+    if query is not None and n_ok:
+        # a pair has a queried face: the other face's box meets the box around the queried faces
+        queried = wanted & ok
+        if not queried.any():
+            return np.zeros((0, 2), np.int64)
+        ok = ok & np.all(lo <= hi[queried].max(axis=0), axis=1) & np.all(hi >= lo[queried].min(axis=0), axis=1)
+        n_ok = int(np.count_nonzero(ok))
+    if n_ok == 0:
+        return np.zeros((0, 2), np.int64)
+    size = 4 * n_ok + 1
+    start, entries, cells = _build_grid(lo, hi, ok, origin, inv_h, size)
+    return _box_pairs(pts, fcs, _face_planes(pts, fcs), lo, hi, ok, grp, wanted, origin, inv_h, start, entries,
+                      cells, size)
+
+
+def spatial_order(points, faces) -> np.ndarray:
+    """Face permutation along a Morton curve through the faces' bounding boxes.
+
+    Intersection checks run fastest with faces that are near in space also
+    near in memory; a mesh whose vertices only move a little keeps a good
+    order, so compute it once and pass it to :func:`intersecting_faces`.
+
+    Parameters
+    ----------
+    points : array_like, shape (V, 3)
+    faces : array_like, shape (F, 3)
+
+    Returns
+    -------
+    numpy.ndarray, shape (F,), int64
+    """
+    pts, fcs = as_triangle_mesh(points, faces)
+    return np.argsort(_face_boxes(pts, fcs)[5], kind="stable")
+
+
+def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
+    """Faces that intersect a non-adjacent face of the same mesh.
+
+    Parameters
+    ----------
+    points : array_like, shape (V, 3)
+    faces : array_like, shape (F, 3)
+    query : array_like of bool, shape (F,), optional
+        Test only the pairs that involve these faces; by default all pairs.
+        Use it for incremental checks of the faces near moved vertices.
+    order : array_like of int, shape (F,), optional
+        A face permutation from :func:`spatial_order` (of this or an earlier
+        state of the mesh). It only affects speed; by default it is computed.
+
+    Returns
+    -------
+    numpy.ndarray, shape (F,), bool
+        Faces that meet a non-adjacent face (in a tested pair).
+        ``result.any()`` tells whether the mesh self-intersects.
+    """
+    pts, fcs = as_triangle_mesh(points, faces)
+    q = np.ones(len(fcs), bool) if query is None else np.asarray(query, dtype=bool)
+    if q.shape != (len(fcs),):
+        raise ValueError(f"query must have shape ({len(fcs)},); got {q.shape}")
+    if order is None:
+        order = spatial_order(pts, fcs)
+    order = np.asarray(order, dtype=np.int64)
+    if order.shape != (len(fcs),):
+        raise ValueError(f"order must have shape ({len(fcs)},); got {order.shape}")
+    # visit the faces in Morton order, so neighbours in space are near in memory
+    local = fcs[order]
+    lo, hi, ok, origin, inv_h, _, n_ok = _face_boxes(pts, local)
+    hits = np.zeros(len(fcs), bool)
+    if n_ok == 0:
+        return hits
+    size = 4 * n_ok + 1
+    grid = _build_grid(lo, hi, ok, origin, inv_h, size)
+    hits[order] = _count_hits(pts, local, lo, hi, ok, q[order], origin, inv_h, *grid, size)
+    return hits
+
+
+def intersecting_pairs(points, faces) -> np.ndarray:
+    """All pairs of non-adjacent faces that intersect.
+
+    Parameters
+    ----------
+    points : array_like, shape (V, 3)
+    faces : array_like, shape (F, 3)
+
+    Returns
+    -------
+    numpy.ndarray, shape (K, 2), int64
+        Face index pairs ``(f, g)`` with ``f < g``, sorted.
+    """
+    pts, fcs = as_triangle_mesh(points, faces)
+    hits = intersecting_faces(pts, fcs)
+    flagged = np.flatnonzero(hits)
+    pairs = set()
+    for f in flagged:
+        for g in flagged:
+            if f < g and not set(fcs[f]) & set(fcs[g]) and triangles_intersect(pts[fcs[f]], pts[fcs[g]]):
+                pairs.add((int(f), int(g)))
+    return np.array(sorted(pairs), dtype=np.int64).reshape(-1, 2)

@@ -1,0 +1,271 @@
+"""Per-face and per-vertex geometric quantities of triangle meshes.
+
+Inputs are validated arrays: ``points`` (V, 3) float64 and ``faces`` (F, 3)
+int64 (see :func:`pverosion.kernels.validation.as_triangle_mesh`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._scatter import CHUNKS, chunk_range, chunk_total
+from pverosion.kernels._threads import for_chunks, for_ranges
+from pverosion.kernels.mesh.topology import edge_topology
+
+__all__ = [
+    "average_edge_length",
+    "corner_areas",
+    "face_normals",
+    "meyer_corner_areas",
+    "point_areas",
+    "signed_volume",
+    "vertex_normals",
+]
+
+_NORMAL_WEIGHTINGS = ("area", "max")
+
+
+def face_normals(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit face normals (right-hand rule on the vertex order) and face areas.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3)
+    faces : numpy.ndarray, shape (F, 3)
+
+    Returns
+    -------
+    normals : numpy.ndarray, shape (F, 3)
+        Unit normals; zero for degenerate faces.
+    areas : numpy.ndarray, shape (F,)
+    """
+    p0, p1, p2 = (points[faces[:, k]] for k in range(3))
+    cross = np.cross(p1 - p0, p2 - p0)
+    double_area = np.linalg.norm(cross, axis=1)
+    normals = np.zeros_like(cross)
+    ok = double_area > 0
+    normals[ok] = cross[ok] / double_area[ok, None]
+    return normals, 0.5 * double_area
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def face_normal_terms(points, faces, f, max_weights):
+    """Contribution of face ``f`` to the normals of its corners: (ok, n, w0, w1, w2).
+
+    ``n`` is the unnormalised face normal (twice the area); each corner adds
+    ``w_k n``, with weights 1 (area weighting) or Max's ``1 / (|e_a|^2 |e_b|^2)``
+    of the corner's two edges; ``ok`` is False for a face Max's weights skip.
+    """
+    p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
+    a, b, e = v3.sub(p1, p0), v3.sub(p2, p1), v3.sub(p0, p2)
+    n = v3.cross(a, b)
+    if not max_weights:
+        return True, n, 1.0, 1.0, 1.0
+    la, lb, le = v3.dot(a, a), v3.dot(b, b), v3.dot(e, e)
+    if la * lb * le == 0.0:
+        return False, n, 0.0, 0.0, 0.0
+    return True, n, 1.0 / (la * le), 1.0 / (la * lb), 1.0 / (lb * le)
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _normal_chunk(points, faces, max_weights, acc, c):
+    """Add the weighted normals of chunk ``c`` of the faces to their corners in ``acc[c]`` (V, 3)."""
+    start, stop = chunk_range(faces.shape[0], c)
+    for f in range(start, stop):
+        ok, n, w0, w1, w2 = face_normal_terms(points, faces, f, max_weights)
+        if not ok:
+            continue
+        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        for d in range(3):
+            acc[c, i0, d] += w0 * n[d]
+            acc[c, i1, d] += w1 * n[d]
+            acc[c, i2, d] += w2 * n[d]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _normalise_range(acc, out, start, stop):
+    """Unit sums over the chunks of ``acc`` for vertices ``start`` to ``stop`` (zero where the sum is zero)."""
+    for i in range(start, stop):
+        total = (chunk_total(acc, i, 0), chunk_total(acc, i, 1), chunk_total(acc, i, 2))
+        length = v3.norm(total)
+        if length > 0.0:
+            v3.store(out, i, v3.scale(total, 1.0 / length))
+
+
+def _scatter_normals(points: np.ndarray, faces: np.ndarray, max_weights: bool) -> np.ndarray:
+    n_vertices = points.shape[0]
+    acc = np.zeros((CHUNKS, n_vertices, 3))
+    for_chunks(_normal_chunk, faces.shape[0], points, faces, max_weights, acc)
+    out = np.zeros((n_vertices, 3))
+    for_ranges(_normalise_range, n_vertices, acc, out)
+    return out
+
+
+def vertex_normals(
+    points: np.ndarray,
+    faces: np.ndarray,
+    *,
+    weighting: str = "area",
+) -> np.ndarray:
+    """Unit vertex normals from the incident faces.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3)
+    faces : numpy.ndarray, shape (F, 3)
+    weighting : {"area", "max"}
+        ``"area"`` weights each face normal by the face area; ``"max"`` uses
+        Max's (1999) weights ``1 / (|e_a|^2 |e_b|^2)`` of the two edges at the
+        corner, which are exact for vertices lying on a sphere and are what the
+        curvature estimator uses.
+
+    Returns
+    -------
+    numpy.ndarray, shape (V, 3)
+        Unit normals; zero for vertices without a non-degenerate face.
+    """
+    if weighting not in _NORMAL_WEIGHTINGS:
+        raise ValueError(f"weighting must be one of {_NORMAL_WEIGHTINGS}; got {weighting!r}")
+    return _scatter_normals(points, faces, weighting == "max")
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def meyer_corner_areas(e0, e1, e2):
+    """Mixed Voronoi areas of the corners of one triangle (Meyer et al. 2003).
+
+    ``e0, e1, e2`` are the edge vectors opposite corners 0, 1, 2, running
+    around the triangle (``e0 = p2 - p1``, ``e1 = p0 - p2``, ``e2 = p1 - p0``).
+    Returns the three corner areas (zero for a degenerate triangle).
+    """
+    area = 0.5 * v3.norm(v3.cross(e0, e1))
+    if area == 0.0:
+        return 0.0, 0.0, 0.0
+    l0, l1, l2 = v3.dot(e0, e0), v3.dot(e1, e1), v3.dot(e2, e2)
+    w0 = l0 * (l1 + l2 - l0)
+    w1 = l1 * (l2 + l0 - l1)
+    w2 = l2 * (l0 + l1 - l2)
+    if w0 <= 0.0:
+        c1 = -0.25 * l2 * area / v3.dot(e0, e2)
+        c2 = -0.25 * l1 * area / v3.dot(e0, e1)
+        return area - c1 - c2, c1, c2
+    if w1 <= 0.0:
+        c2 = -0.25 * l0 * area / v3.dot(e1, e0)
+        c0 = -0.25 * l2 * area / v3.dot(e1, e2)
+        return c0, area - c2 - c0, c2
+    if w2 <= 0.0:
+        c0 = -0.25 * l1 * area / v3.dot(e2, e1)
+        c1 = -0.25 * l0 * area / v3.dot(e2, e0)
+        return c0, c1, area - c0 - c1
+    k = 0.5 * area / (w0 + w1 + w2)
+    return k * (w1 + w2), k * (w2 + w0), k * (w0 + w1)
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _corner_area_range(points, faces, out, start, stop):
+    for f in range(start, stop):
+        p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
+        c0, c1, c2 = meyer_corner_areas(v3.sub(p2, p1), v3.sub(p0, p2), v3.sub(p1, p0))
+        out[f, 0] = c0
+        out[f, 1] = c1
+        out[f, 2] = c2
+
+
+def _corner_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    out = np.zeros((faces.shape[0], 3))
+    for_ranges(_corner_area_range, faces.shape[0], points, faces, out)
+    return out
+
+
+def corner_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Mixed Voronoi areas of each triangle corner (Meyer et al. 2003).
+
+    Non-obtuse triangles are split at their circumcentre; obtuse ones give the
+    obtuse corner half the area and the others a quarter each. The three
+    corner areas of a face sum to its area.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3)
+    faces : numpy.ndarray, shape (F, 3)
+
+    Returns
+    -------
+    numpy.ndarray, shape (F, 3)
+    """
+    return _corner_areas(points, faces)
+
+
+def point_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Mixed Voronoi area around each vertex; they sum to the surface area.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3)
+    faces : numpy.ndarray, shape (F, 3)
+
+    Returns
+    -------
+    numpy.ndarray, shape (V,)
+    """
+    return np.bincount(faces.ravel(), weights=corner_areas(points, faces).ravel(), minlength=len(points))
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _edge_length_chunk(points, edges, partial, c):
+    lo, hi = chunk_range(edges.shape[0], c)
+    for e in range(lo, hi):
+        partial[c] += v3.norm(v3.sub(v3.row(points, edges[e, 0]), v3.row(points, edges[e, 1])))
+
+
+def _mean_edge_length(points: np.ndarray, edges: np.ndarray) -> float:
+    """Summed in fixed edge chunks, so bit-identical for any thread count."""
+    partial = np.zeros(CHUNKS)
+    for_chunks(_edge_length_chunk, edges.shape[0], points, edges, partial)
+    total = 0.0
+    for c in range(CHUNKS):
+        total += float(partial[c])
+    return total / max(edges.shape[0], 1)
+
+
+def average_edge_length(points: np.ndarray, faces: np.ndarray, *, edges: np.ndarray | None = None) -> float:
+    """Mean length of the mesh's unique undirected edges.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3)
+    faces : numpy.ndarray, shape (F, 3)
+    edges : numpy.ndarray, shape (E, 2), optional
+        Reuse the edges of :func:`~pverosion.kernels.mesh.topology.edge_topology`.
+
+    Returns
+    -------
+    float
+    """
+    if edges is None:
+        edges = edge_topology(faces, len(points)).edges
+    return float(_mean_edge_length(points, edges))
+
+
+def signed_volume(points: np.ndarray, faces: np.ndarray, *, origin=None) -> float:
+    """Signed volume enclosed by the faces, as seen from ``origin``.
+
+    Positive for a closed mesh whose faces wind counter-clockwise seen from
+    outside (normals pointing out). For an open mesh the value is the volume
+    of the mesh closed by a cone to ``origin``.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3)
+    faces : numpy.ndarray, shape (F, 3)
+    origin : array_like, shape (3,), optional
+        Apex of the closing cone; defaults to the centroid of the points.
+
+    Returns
+    -------
+    float
+    """
+    o = points.mean(axis=0) if origin is None else np.asarray(origin, dtype=float)
+    p0, p1, p2 = (points[faces[:, k]] - o for k in range(3))
+    return float(np.einsum("ij,ij->", p0, np.cross(p1, p2)) / 6.0)

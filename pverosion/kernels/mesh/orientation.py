@@ -1,0 +1,341 @@
+"""Consistent, outward face orientation for closed meshes and open scans.
+
+Faces are first made consistent inside each edge-connected component by
+propagating across manifold edges (edges shared by exactly two faces). Each
+component is then turned outward by the sign of its enclosed volume, where
+the holes of open scans are virtually closed by a cone from every boundary
+loop to that loop's centroid. A component that lies inside another one (the
+wall of a cavity) is turned the other way, decided by the generalised
+winding number, so that normals always point out of the solid.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._threads import for_ranges
+from pverosion.kernels.mesh.topology import sorted_twins
+
+__all__ = ["ORIENTATIONS", "Orientation", "SortedOrientation", "orient_faces", "orient_sorted", "winding_number"]
+
+ORIENTATIONS = ("outward", "inward", "keep")
+"""Accepted values of the ``orientation`` option."""
+
+
+@dataclass(frozen=True)
+class Orientation:
+    """Result of :func:`orient_faces`.
+
+    Attributes
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64
+        Faces in the chosen orientation.
+    flipped : numpy.ndarray, shape (F,), bool
+        Faces whose vertex order was reversed relative to the input.
+    component : numpy.ndarray, shape (F,), int64, or None
+        Edge-connected component of each face; None with ``mode="keep"``,
+        which builds no topology.
+    mode : str
+        The orientation that was asked for.
+    """
+
+    faces: np.ndarray
+    flipped: np.ndarray
+    component: np.ndarray | None
+    mode: str
+
+    @property
+    def n_flipped(self) -> int:
+        """Number of faces whose order was reversed."""
+        return int(np.count_nonzero(self.flipped))
+
+    @property
+    def n_components(self) -> int | None:
+        """Number of edge-connected components (None with ``mode="keep"``)."""
+        if self.component is None:
+            return None
+        return int(self.component.max()) + 1 if self.component.size else 0
+
+
+@njit(cache=True, error_model="numpy")
+def _propagate(faces, partner):
+    n_faces = faces.shape[0]
+    flip = np.zeros(n_faces, np.bool_)
+    comp = np.full(n_faces, -1, np.int64)
+    stack = np.empty(n_faces, np.int64)
+    n_comp = 0
+    for seed in range(n_faces):
+        if comp[seed] >= 0:
+            continue
+        comp[seed] = n_comp
+        top = 0
+        stack[top] = seed
+        top += 1
+        while top > 0:
+            top -= 1
+            f = stack[top]
+            for k in range(3):
+                p = partner[3 * f + k]
+                if p < 0:
+                    continue
+                g = p // 3
+                if comp[g] >= 0:
+                    continue
+                same_direction = faces[f, k] == faces[g, p - 3 * g]
+                comp[g] = n_comp
+                flip[g] = flip[f] ^ same_direction
+                stack[top] = g
+                top += 1
+        n_comp += 1
+    return flip, comp
+
+
+@njit(cache=True, error_model="numpy")
+def _winding(point, points, faces):
+    total = 0.0
+    for f in range(faces.shape[0]):
+        a = points[faces[f, 0]] - point
+        b = points[faces[f, 1]] - point
+        c = points[faces[f, 2]] - point
+        la = np.sqrt(a @ a)
+        lb = np.sqrt(b @ b)
+        lc = np.sqrt(c @ c)
+        det = a @ np.cross(b, c)
+        den = la * lb * lc + (a @ b) * lc + (a @ c) * lb + (b @ c) * la
+        total += 2.0 * np.arctan2(det, den)
+    return total / (4.0 * np.pi)
+
+
+def winding_number(point, points: np.ndarray, faces: np.ndarray) -> float:
+    """Generalised winding number of a triangle mesh around a point.
+
+    Parameters
+    ----------
+    point : array_like, shape (3,)
+    points : numpy.ndarray, shape (V, 3)
+    faces : numpy.ndarray, shape (F, 3)
+
+    Returns
+    -------
+    float
+        About 1 inside a closed outward-oriented mesh, 0 outside, fractional
+        near the holes of an open one.
+    """
+    return float(_winding(np.asarray(point, dtype=np.float64), points, faces))
+
+
+@njit(cache=True, error_model="numpy")
+def _find(parent, v):
+    while parent[v] != v:
+        parent[v] = parent[parent[v]]
+        v = parent[v]
+    return v
+
+
+@njit(cache=True, error_model="numpy")
+def _closed_volumes(points, faces, flip, component, n_comp, others):
+    """Signed volume of every component, with each hole closed by a cone to its rim's centroid, and the
+    largest extent of the points along an axis."""
+    n_vertices = points.shape[0]
+    origin = np.zeros(3)
+    lo = points[0].copy()
+    hi = points[0].copy()
+    for v in range(n_vertices):
+        for d in range(3):
+            x = points[v, d]
+            origin[d] += x
+            lo[d] = min(lo[d], x)
+            hi[d] = max(hi[d], x)
+    origin /= n_vertices
+    volume = np.zeros(n_comp)
+    parent = np.arange(n_vertices)
+    for f in range(faces.shape[0]):
+        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        if flip[f]:
+            i1, i2 = i2, i1
+        a = v3.sub(v3.row(points, i0), origin)
+        b = v3.sub(v3.row(points, i1), origin)
+        c = v3.sub(v3.row(points, i2), origin)
+        volume[component[f]] += v3.dot(a, v3.cross(b, c))
+        for k in range(3):
+            if others[3 * f + k] == 0:
+                ra = _find(parent, faces[f, k])
+                rb = _find(parent, faces[f, (k + 1) % 3])
+                parent[ra] = rb
+    # centroid of each hole's rim, then a cone from it over every rim edge
+    centre = np.zeros((n_vertices, 3))
+    count = np.zeros(n_vertices)
+    for h in range(others.shape[0]):
+        if others[h] == 0:
+            a = faces[h // 3, h % 3]
+            r = _find(parent, a)
+            for d in range(3):
+                centre[r, d] += points[a, d]
+            count[r] += 1.0
+    for h in range(others.shape[0]):
+        if others[h] == 0:
+            f = h // 3
+            a = faces[f, h % 3]
+            b = faces[f, (h % 3 + 1) % 3]
+            if flip[f]:
+                a, b = b, a
+            r = _find(parent, a)
+            apex = v3.sub(v3.scale(v3.row(centre, r), 1.0 / count[r]), origin)
+            pa = v3.sub(v3.row(points, a), origin)
+            pb = v3.sub(v3.row(points, b), origin)
+            volume[component[f]] += v3.dot(pb, v3.cross(pa, apex))
+    return volume / 6.0, max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2])
+
+
+def orient_faces(
+    points: np.ndarray,
+    faces: np.ndarray,
+    *,
+    mode: str = "outward",
+) -> Orientation:
+    """Orient faces consistently, with normals pointing out of (or into) the solid.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3)
+    faces : numpy.ndarray, shape (F, 3)
+    mode : {"outward", "inward", "keep"}
+        ``"outward"`` makes convex regions have positive mean curvature;
+        ``"inward"`` is its mirror; ``"keep"`` returns the faces unchanged.
+
+    Returns
+    -------
+    Orientation
+
+    Notes
+    -----
+    A component whose closed volume is negligible (a flat or symmetric open
+    sheet) keeps the orientation of its first face. Non-orientable
+    components (a Möbius strip) keep whatever the propagation reached.
+    """
+    if mode not in ORIENTATIONS:
+        raise ValueError(f"orientation must be one of {ORIENTATIONS}; got {mode!r}")
+    if mode == "keep":
+        return Orientation(faces, np.zeros(len(faces), bool), None, mode)
+    local = orient_sorted(points, faces, mode=mode)
+    flipped = local.input_flip()
+    out = _apply(faces, flipped) if local.n_flipped else faces.copy()
+    return Orientation(out, flipped, _unsort(local.component, local.order), mode)
+
+
+@dataclass(frozen=True)
+class SortedOrientation:
+    """Result of :func:`orient_sorted`, in the face order of :func:`~pverosion.kernels.mesh.topology.locality_order`.
+
+    Attributes
+    ----------
+    order : numpy.ndarray, shape (F,), int64
+        ``faces[order]`` is the sorted input.
+    faces : numpy.ndarray, shape (F, 3), int64
+        The sorted faces in the chosen orientation.
+    flip : numpy.ndarray, shape (F,), bool
+        Sorted faces whose vertex order was reversed.
+    component : numpy.ndarray, shape (F,), int64
+        Edge-connected component of each sorted face.
+    n_flipped : int
+        Number of reversed faces.
+    """
+
+    order: np.ndarray
+    faces: np.ndarray
+    flip: np.ndarray
+    component: np.ndarray
+    n_flipped: int
+
+    def input_flip(self) -> np.ndarray:
+        """Mask (F,) of the reversed faces in the input order."""
+        return _unsort(self.flip, self.order)
+
+    def input_faces(self, faces: np.ndarray) -> np.ndarray:
+        """The input ``faces`` (F, 3), in their order, in the chosen orientation."""
+        return _apply(faces, self.input_flip())
+
+
+def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward") -> SortedOrientation:
+    """:func:`orient_faces` on the faces sorted by their smallest vertex, without mapping back.
+
+    Kernels that sort faces the same way for memory locality (such as
+    :class:`~pverosion.kernels.curvature.operator.CurvatureOperator`) take the result's
+    faces as they are, which saves sorting, permuting and validating the faces
+    again; :func:`orient_faces` maps the result back to the input order.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3), float64
+    faces : numpy.ndarray, shape (F, 3), int64
+        Validated triangles.
+    mode : {"outward", "inward"}
+
+    Returns
+    -------
+    SortedOrientation
+    """
+    if mode not in ("outward", "inward"):
+        raise ValueError(f"orientation must be 'outward' or 'inward'; got {mode!r}")
+    order, local, partner, others = sorted_twins(faces, len(points))
+    flip, component = _propagate(local, partner)
+    n_comp = int(component.max()) + 1
+    volume, extent = _closed_volumes(points, local, flip, component, n_comp, others)
+    decided = np.abs(volume) > 1e-9 * extent**3
+    turn = decided & (volume < 0)
+    if n_comp > 1:
+        turn ^= _cavity_walls(points, _apply(local, flip ^ turn[component]), component, n_comp, decided)
+    if mode == "inward":
+        turn ^= decided
+    if turn.any():
+        flip ^= turn[component]
+    n_flipped = int(np.count_nonzero(flip))
+    return SortedOrientation(order, _apply(local, flip) if n_flipped else local, flip, component, n_flipped)
+
+
+def _unsort(values: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """The array ``out`` with ``out[order] = values`` (``order`` a permutation)."""
+    out = np.empty_like(values)
+    out[order] = values
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _apply_range(faces, flip, out, start, stop):
+    for f in range(start, stop):
+        out[f, 0] = faces[f, 0]
+        if flip[f]:
+            out[f, 1] = faces[f, 2]
+            out[f, 2] = faces[f, 1]
+        else:
+            out[f, 1] = faces[f, 1]
+            out[f, 2] = faces[f, 2]
+
+
+def _apply(faces: np.ndarray, flip: np.ndarray) -> np.ndarray:
+    """``faces`` with the faces where ``flip`` is set reversed (their last two corners swapped)."""
+    out = np.empty_like(faces)
+    for_ranges(_apply_range, faces.shape[0], faces, flip, out)
+    return out
+
+
+def _cavity_walls(points, outward, component, n_comp, decided):
+    """Components nested inside an odd number of other solids (cavity walls)."""
+    order = np.argsort(component, kind="stable")
+    bounds = np.searchsorted(component[order], np.arange(n_comp + 1))
+    comp_faces = [outward[order[bounds[c] : bounds[c + 1]]] for c in range(n_comp)]
+    lo = np.array([points[f].reshape(-1, 3).min(axis=0) for f in comp_faces])
+    hi = np.array([points[f].reshape(-1, 3).max(axis=0) for f in comp_faces])
+    walls = np.zeros(n_comp, bool)
+    for c in np.flatnonzero(decided):
+        probe = points[comp_faces[c][0, 0]]
+        depth = 0
+        for d in np.flatnonzero(decided):
+            if d != c and np.all(probe >= lo[d]) and np.all(probe <= hi[d]):
+                depth += round(winding_number(probe, points, comp_faces[d]))
+        walls[c] = depth % 2 == 1
+    return walls

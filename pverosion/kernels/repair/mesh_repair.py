@@ -1,0 +1,957 @@
+"""Repair of intersecting triangle meshes and Boolean operations (Skorkovská's thesis, §10.2-10.3).
+
+0. A pre-pass removes nearly degenerate faces (needles by edge collapse,
+   caps by edge flip; :mod:`pverosion.kernels.mesh.degenerate`): an exactly
+   degenerate face on a curve has no plane to cut in.
+1. The intersection curves are found exactly
+   (:func:`pverosion.kernels.exact.intersection_curves.intersection_curves`).
+2. Faces that overlap in a common plane get segments too: the parts of
+   each one's edges inside the other, found exactly in 2-D
+   (:func:`pverosion.kernels.exact.intersection_curves.coplanar_segments`), so that
+   every piece of either lies wholly inside or outside the other.
+   Every face that an intersection segment lies on, or whose edge a curve
+   point splits, is cut along its segments: its polygons are rebuilt and
+   triangulated by ear clipping (:func:`pverosion.kernels.exact.polygon_cut.cut_triangles`).
+   The pieces on both sides of a curve share the curve's points, so the
+   cut mesh is stitched along the curves by construction.
+3. The curves divide the surface into patches (faces connected across edges
+   that are not on a curve). Each patch lies wholly inside or outside every
+   other part of the surface: its winding number is read once, by a ray from
+   a point of its largest face. A patch lying on other input faces (a
+   coplanar overlap) leaves all of them out of its ray, and each of them
+   adds 1 to its operand's winding number on its back side.
+4. Which patches stay depends on the operation. A repair keeps the boundary
+   of the region of winding number >= 1: patches with winding number 0 just
+   in front of them. A Boolean operation keeps, of each operand, the patches
+   outside or inside the other, the thesis' temporary normals deciding
+   which: a difference turns the subtracted operand's kept patches around.
+   Of coincident patches (faces overlapping in a plane, cut alike), only
+   those of the lowest input face stay, and only where the result lies on
+   one side of them.
+5. Optionally, the mesh is improved: the needles and caps the cutting made
+   collapse, flip or split while the curve vertices stay; should faces come
+   to meet, their vertices are locked and the improvement starts over.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numba import njit
+
+from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges
+from pverosion.kernels.exact.intersection import intersecting_faces
+from pverosion.kernels.exact.intersection_curves import (
+    VERTEX,
+    IntersectionCurves,
+    canonical_vertices,
+    coplanar_overlaps,
+    curves_of,
+    trace_polylines,
+    unique_rows,
+)
+from pverosion.kernels.exact.polygon_cut import cut_triangles
+from pverosion.kernels.exact.predicates import sign_orient2d
+from pverosion.kernels.mesh.degenerate import remove_degenerate_faces
+from pverosion.kernels.mesh.geometry import average_edge_length
+from pverosion.kernels.mesh.orientation import orient_faces
+from pverosion.kernels.mesh.topology import _incidence, boundary_edges, edge_topology, halfedge_twins
+from pverosion.kernels.spatial.mesh_query import bucket_boxes, ray_winding, ray_winding_without
+from pverosion.kernels.tolerances import REPAIR_TOLERANCE
+from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh
+
+__all__ = ["OPERATIONS", "CoplanarOverlapError", "RepairError", "RepairResult", "boolean_meshes", "mesh_problems",
+           "outward_parts", "repair_intersections"]
+
+
+class CoplanarOverlapError(ValueError):
+    """Deprecated: no longer raised. Faces that overlap in a common plane are cut like any others; the name stays
+    for code that catches it."""
+
+
+DEFAULT_TOLERANCE = REPAIR_TOLERANCE
+"""Default ``tolerance`` of :func:`repair_intersections` and :func:`boolean_meshes`
+(:data:`pverosion.kernels.tolerances.REPAIR_TOLERANCE`)."""
+
+OPERATIONS = ("union", "intersection", "difference", "reverse_difference")
+"""Boolean operations: A ∪ B, A ∩ B, A ∖ B, B ∖ A."""
+
+
+THIN_SHELL = 1e-9
+"""A shell (edge-connected part) of the result whose |volume| is at most this times its area times the bounding-box
+diagonal encloses nothing: it is dropped, and :func:`mesh_problems` reports one."""
+
+IMPROVE_EDGE_RATIO = 0.25
+"""Mesh improvement after a repair: edges shorter than this times the input's average edge length collapse."""
+
+IMPROVE_MAX_ANGLE = 150.0
+"""Mesh improvement after a repair: faces with a larger angle (degrees) are caps, flipped or split."""
+
+# the region of every operation, from whether a point is inside A and inside B (each: its winding number >= 1)
+_REGION = {
+    None: lambda a: a,
+    "union": lambda a, b: a | b,
+    "intersection": lambda a, b: a & b,
+    "difference": lambda a, b: a & ~b,
+    "reverse_difference": lambda a, b: b & ~a,
+}
+
+
+@dataclass(frozen=True)
+class RepairResult:
+    """A repaired mesh or the result of a Boolean operation.
+
+    Attributes
+    ----------
+    points : numpy.ndarray, shape (V, 3)
+    faces : numpy.ndarray, shape (F, 3), int64
+    source_face : numpy.ndarray, shape (F,), int64
+        The input face each output face is (a piece of); for a Boolean
+        operation, faces of B are numbered after those of A.
+    source_vertex : numpy.ndarray, shape (V,), int64
+        The input vertex each output vertex is (of the lowest index where
+        input vertices coincide), -1 for a new vertex on a curve.
+    on_curve : numpy.ndarray, shape (V,), bool
+        Vertices on an intersection curve.
+    curves : IntersectionCurves
+        The intersection boundary that was found (with the case table).
+    polylines : list of numpy.ndarray
+        The curves as point indices into ``points`` (closed ones repeat
+        their first point).
+    """
+
+    points: np.ndarray
+    faces: np.ndarray
+    source_face: np.ndarray
+    source_vertex: np.ndarray
+    on_curve: np.ndarray
+    curves: IntersectionCurves
+    polylines: list
+
+
+# --- cutting ---------------------------------------------------------------------------------------------------
+
+
+def _edge_keys(canon: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Key a * V + b (a < b, canonical vertices) of every face edge k (from corner k to k + 1): (F, 3)."""
+    a = canon[faces]
+    b = np.roll(a, -1, axis=1)
+    n = len(canon)
+    return np.minimum(a, b) * n + np.maximum(a, b)
+
+
+def _face_points(fcs: np.ndarray, canon: np.ndarray, curves: IntersectionCurves):
+    """Every (face, curve point, location on the face) to cut with, sorted by face and point.
+
+    The ends of each face's own segments, plus the curve points inside any
+    edge of the face (also those a neighbour's segment put there), so that
+    no cut leaves a T-junction.
+    """
+    face = np.repeat(np.concatenate([curves.pairs[:, 0], curves.pairs[:, 1]]), 2)
+    point = np.concatenate([curves.segments, curves.segments]).ravel()
+    loc = np.concatenate([curves.locations[:, :, 0], curves.locations[:, :, 1]]).ravel()
+    # curve points inside edges go to every face with that edge
+    keys = _edge_keys(canon, fcs)
+    on_edge = (loc >= 3) & (loc < 6)
+    edge_key = keys[face[on_edge], loc[on_edge] - 3]
+    flat = keys.ravel()
+    order = np.argsort(flat, kind="stable")
+    lo = np.searchsorted(flat[order], edge_key, side="left")
+    count = np.searchsorted(flat[order], edge_key, side="right") - lo
+    rows = np.repeat(np.arange(len(edge_key)), count)
+    slots = order[np.repeat(lo - np.cumsum(count) + count, count) + np.arange(int(count.sum()))]
+    face = np.concatenate([face, slots // 3])
+    point = np.concatenate([point, point[on_edge][rows]])
+    loc = np.concatenate([loc, 3 + slots % 3])
+    return unique_rows(np.stack([face, point, loc], axis=1))[0]
+
+
+def _cut_faces(pts, fcs, canon, curves):
+    """Cut the faces touched by the curves; returns the output faces (canonical / curve-point ids), their
+    source faces, and the vertex id of every curve point."""
+    n_vertices = len(pts)
+    keys = curves.point_keys
+    point_id = np.where(keys[:, 0] == VERTEX, keys[:, 1], n_vertices + np.arange(len(keys)))
+    table = _face_points(fcs, canon, curves)
+    cut, first_row = np.unique(table[:, 0], return_index=True)
+    whole = np.ones(len(fcs), bool)
+    whole[cut] = False
+    kept = np.flatnonzero(whole)
+    if len(cut) == 0:
+        return canon[fcs[kept]], kept, point_id
+    # local points of every cut face: its 3 corners, then its curve points that are not corners
+    row_face = np.searchsorted(cut, table[:, 0])  # index of each row's face in ``cut``
+    other = table[:, 2] >= 3
+    n_other = np.bincount(row_face[other], minlength=len(cut))
+    point_start = np.zeros(len(cut) + 1, np.int64)
+    np.cumsum(3 + n_other, out=point_start[1:])
+    before = np.cumsum(other) - other  # other rows before each row
+    local = np.where(other, 3 + before - before[first_row][row_face], table[:, 2])  # each row's point on its face
+    tri = pts[fcs[cut]]  # (C, 3, 3)
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    axis = np.argmax(np.abs(normal), axis=1)
+    flip = normal[np.arange(len(cut)), axis] < 0.0
+    cols = np.stack([(axis + 1) % 3, (axis + 2) % 3], axis=1)
+    cols[flip] = cols[flip][:, ::-1]
+    xyz = np.empty((point_start[-1], 3))
+    corner_rows = (point_start[:-1, None] + np.arange(3)).ravel()
+    xyz[corner_rows] = tri.reshape(-1, 3)
+    other_rows = point_start[row_face[other]] + local[other]
+    xyz[other_rows] = curves.points[table[other, 1]]
+    row_owner = np.repeat(np.arange(len(cut)), 3 + n_other)
+    xy = np.take_along_axis(xyz, cols[row_owner], axis=1)
+    location = np.empty(point_start[-1], np.int64)
+    location[corner_rows] = np.tile([0, 1, 2], len(cut))
+    location[other_rows] = table[other, 2]
+    param = np.zeros(point_start[-1])
+    edge = other & (table[:, 2] < 6)
+    k = table[edge, 2] - 3
+    owner = row_face[edge]
+    a, b = tri[owner, k], tri[owner, (k + 1) % 3]
+    param[point_start[owner] + local[edge]] = (np.einsum("ij,ij->i", curves.points[table[edge, 1]] - a, b - a)
+                                               / np.einsum("ij,ij->i", b - a, b - a))
+    # segments in local indices: look every end up as (face, point) in the table
+    seg_face = np.concatenate([curves.pairs[:, 0], curves.pairs[:, 1]])
+    seg_points = np.concatenate([curves.segments, curves.segments])
+    order = np.argsort(seg_face, kind="stable")
+    seg_face, seg_points = seg_face[order], seg_points[order]
+    n_points = len(curves.points)
+    row_key = table[:, 0] * n_points + table[:, 1]  # sorted: the table is sorted by face, then point
+    ends = np.searchsorted(row_key, seg_face[:, None] * n_points + seg_points)
+    segments = local[ends]
+    seg_start = np.searchsorted(seg_face, np.r_[cut, np.iinfo(np.int64).max])
+    triangles, _, tri_start = cut_triangles(xy, location, param, point_start, segments, seg_start)
+    counts = np.diff(tri_start)
+    if np.any(counts == 0):
+        raise RepairError(f"face {cut[np.argmax(counts == 0)]} could not be cut along its intersection segments")
+    ids = np.empty(point_start[-1], np.int64)
+    ids[corner_rows] = canon[fcs[cut]].ravel()
+    ids[other_rows] = point_id[table[other, 1]]
+    tri_owner = np.repeat(np.arange(len(cut)), counts)
+    pieces = ids[point_start[tri_owner][:, None] + triangles]
+    return (np.concatenate([canon[fcs[kept]], pieces]), np.concatenate([kept, cut[tri_owner]]), point_id)
+
+
+# --- patches and their winding numbers ---------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _root(parent, v):
+    while parent[v] != v:
+        parent[v] = parent[parent[v]]
+        v = parent[v]
+    return v
+
+
+@njit(cache=True)
+def _patches(faces, n_vertices, cut_edges, pairs_only=False):
+    """Patch of every face (F,), labels 0..C-1 in order of first face: faces connected across edges that are
+    not intersection edges (sorted keys a * V + b, a < b); with ``pairs_only``, only across edges of exactly
+    two faces (pieces of coincident faces cut alike have edges of four)."""
+    indptr, face_ids, _ = _incidence(faces, n_vertices)
+    parent = np.arange(faces.shape[0])
+    for f in range(faces.shape[0]):
+        for k in range(3):
+            a, b = faces[f, k], faces[f, (k + 1) % 3]
+            if a > b:
+                continue  # every edge from the face where it runs upwards
+            at = np.searchsorted(cut_edges, a * n_vertices + b)
+            if at < cut_edges.shape[0] and cut_edges[at] == a * n_vertices + b:
+                continue
+            if pairs_only:
+                others = 0
+                for s in range(indptr[a], indptr[a + 1]):
+                    g = face_ids[s]
+                    if g != f and (faces[g, 0] == b or faces[g, 1] == b or faces[g, 2] == b):
+                        others += 1
+                if others != 1:
+                    continue
+            for s in range(indptr[a], indptr[a + 1]):
+                g = face_ids[s]
+                if g != f and (faces[g, 0] == b or faces[g, 1] == b or faces[g, 2] == b):
+                    r, q = _root(parent, f), _root(parent, g)
+                    if r != q:
+                        parent[max(r, q)] = min(r, q)
+    label = np.full(faces.shape[0], -1, np.int64)
+    count = 0
+    for f in range(faces.shape[0]):
+        r = _root(parent, f)
+        if label[r] < 0:
+            label[r] = count
+            count += 1
+        label[f] = label[r]
+    return label
+
+
+@njit(cache=True, nogil=True)
+def _winding_range(queries, skip, group, points, faces, lo, size, dims, start2, items2, face_group, out, start, stop):
+    for q in range(start, stop):
+        out[q] = ray_winding(queries[q], points, faces, lo, size, dims, start2, items2, skip[q], face_group, group[q])
+
+
+def _ray_windings(queries, skip, group, points, faces, lo, size, dims, start2, items2, face_group) -> np.ndarray:
+    """:func:`ray_winding` of every query point (Q, 3) (coordinates already permuted for the ray's axis)."""
+    out = np.empty(queries.shape[0], np.int64)
+    for_ranges(_winding_range, queries.shape[0], queries, skip, group, points, faces, lo, size, dims, start2, items2,
+               face_group, out, min_items=HEAVY_ITEMS_PER_RANGE)
+    return out
+
+
+@njit(cache=True)
+def _columns(points, faces):
+    """Grid of (x, y) columns over the faces' boxes, as :class:`TriangleIndex` builds for its +z ray:
+    (lower corner, column edge, columns per axis (3,), CSR offsets, faces)."""
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    edge = 0.0
+    for f in range(faces.shape[0]):
+        for k in range(3):
+            for a in range(3):
+                lo[a] = min(lo[a], points[faces[f, k], a])
+                hi[a] = max(hi[a], points[faces[f, k], a])
+        edge += np.sqrt((points[faces[f, 1], 0] - points[faces[f, 0], 0]) ** 2
+                        + (points[faces[f, 1], 1] - points[faces[f, 0], 1]) ** 2
+                        + (points[faces[f, 1], 2] - points[faces[f, 0], 2]) ** 2)
+    size = max(2.0 * edge / max(faces.shape[0], 1), max(hi[0] - lo[0], hi[1] - lo[1], 1e-12) / 256.0)
+    dims = np.ones(3, np.int64)
+    for a in range(2):
+        dims[a] = max(int(np.ceil(max(hi[a] - lo[a], 1e-12) / size)), 1)
+    low = np.zeros((faces.shape[0], 3), np.int64)  # column boxes (one layer along z)
+    high = np.zeros((faces.shape[0], 3), np.int64)
+    for f in range(faces.shape[0]):
+        for a in range(2):
+            x0 = min(points[faces[f, 0], a], points[faces[f, 1], a], points[faces[f, 2], a])
+            x1 = max(points[faces[f, 0], a], points[faces[f, 1], a], points[faces[f, 2], a])
+            low[f, a] = min(max(int((x0 - lo[a]) / size), 0), dims[a] - 1)
+            high[f, a] = min(max(int((x1 - lo[a]) / size), 0), dims[a] - 1)
+    start, items = bucket_boxes(low, high, dims)
+    return lo, size, dims, start, items
+
+
+def _patch_windings(points, faces, face_group, reps, groups) -> tuple[np.ndarray, np.ndarray]:
+    """Winding numbers of the faces of ``groups`` (< 0: all) at the centroids of the faces ``reps``, leaving
+    those faces out, by rays along the axis their normals point most along (z where they are not vertical),
+    and whether each rep faces down that axis."""
+    tri = points[faces[reps]]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    axis = np.where(normal[:, 2] != 0.0, 2, np.argmax(np.abs(normal), axis=1))
+    centre = tri.mean(axis=1)
+    out = np.zeros(len(reps), np.int64)
+    for a in np.unique(axis):
+        perm = [(a + 1) % 3, (a + 2) % 3, a]  # cyclic: the faces keep their orientation
+        turned = np.ascontiguousarray(points[:, perm])
+        lo, size, dims, start, items = _columns(turned, faces)
+        rows = np.flatnonzero(axis == a)
+        out[rows] = _ray_windings(np.ascontiguousarray(centre[rows][:, perm]), reps[rows], groups[rows], turned,
+                                  faces, lo, size, dims, start, items, face_group)
+    return out, normal[np.arange(len(reps)), axis] < 0.0
+
+
+@njit(cache=True, nogil=True)
+def _winding_without_range(queries, start, left_out, group, points, faces, lo, size, dims, start2, items2, source,
+                           face_group, out, first, last):
+    for q in range(first, last):
+        out[q] = ray_winding_without(queries[q], points, faces, lo, size, dims, start2, items2, source,
+                                     left_out[start[q]:start[q + 1]], face_group, group[q])
+
+
+def _ray_windings_without(queries, start, left_out, group, points, faces, lo, size, dims, start2, items2, source,
+                          face_group) -> np.ndarray:
+    """:func:`ray_winding_without` of every query point (Q, 3), leaving out the faces whose source is one of
+    ``left_out[start[q]:start[q + 1]]``."""
+    out = np.empty(queries.shape[0], np.int64)
+    for_ranges(_winding_without_range, queries.shape[0], queries, start, left_out, group, points, faces, lo, size,
+               dims, start2, items2, source, face_group, out, min_items=HEAVY_ITEMS_PER_RANGE)
+    return out
+
+
+@njit(cache=True)
+def _facing(p, tri, axis):
+    """Exact sign of the ``axis`` component of the normal of triangle ``tri`` (three point indices)."""
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    return sign_orient2d(p[tri[0], i], p[tri[0], j], p[tri[1], i], p[tri[1], j], p[tri[2], i], p[tri[2], j])
+
+
+@njit(cache=True)
+def _coincident_faces(pts, fcs, centre, own, axis, start, partners):
+    """The input faces lying on every query point (Q, 3) of input face ``own`` (Q,): ``own`` itself and those of
+    its coplanar partners (CSR ``start``, ``partners`` over the input faces) that hold the point strictly inside,
+    exactly in the projection along ``axis`` (Q,). Returns the CSR (Q + 1,), (K,) of the faces found."""
+    counts = np.zeros(centre.shape[0] + 1, np.int64)
+    size = centre.shape[0]
+    for q in range(centre.shape[0]):
+        size += start[own[q] + 1] - start[own[q]]
+    found = np.empty(size, np.int64)
+    n = 0
+    for q in range(centre.shape[0]):
+        f, a = own[q], axis[q]
+        i, j = (a + 1) % 3, (a + 2) % 3
+        found[n] = f
+        n += 1
+        for s in range(start[f], start[f + 1]):
+            g = partners[s]
+            turn = _facing(pts, fcs[g], a)
+            inside = turn != 0
+            for k in range(3):
+                b, c = fcs[g, k], fcs[g, (k + 1) % 3]
+                if sign_orient2d(pts[b, i], pts[b, j], pts[c, i], pts[c, j], centre[q, i], centre[q, j]) != turn:
+                    inside = False
+            if inside:
+                found[n] = g
+                n += 1
+        counts[q + 1] = n
+    return counts, found[:n].copy()
+
+
+def _coincident_windings(pts, fcs, input_group, overlaps, points, faces, source, face_group, reps, n_groups):
+    """Winding numbers of every group (operand) just in front of and just behind the patches ``reps`` of the cut
+    mesh (``points``, ``faces``, input face ``source`` and group ``face_group`` of every face) where they lie on
+    input faces (``pts``, ``fcs``, groups ``input_group``) that overlap in a common plane (pairs ``overlaps``).
+
+    At the centroid of a patch's face, the input faces lying on it (its own
+    face f and the partners of f in ``overlaps`` that hold the point) are all
+    left out of the ray, which meets their plane only there: that gives the
+    winding numbers on the ray's side. Across the plane, each left-out face
+    of an operand adds 1 to that operand's winding number behind it (as its
+    own face does for a patch on no other face). Returns the windings in
+    front and behind (n_groups, R), whether each patch lies on another input
+    face (R,) bool, and whether f is the lowest of the input faces lying there
+    (R,) bool: of pieces lying on each other, those of the lowest face stand
+    for all.
+    """
+    both_ways = np.concatenate([overlaps, overlaps[:, ::-1]])
+    both_ways = both_ways[np.argsort(both_ways[:, 0], kind="stable")]
+    start = np.searchsorted(both_ways[:, 0], np.arange(len(fcs) + 1))
+    tri = points[faces[reps]]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    axis = np.where(normal[:, 2] != 0.0, 2, np.argmax(np.abs(normal), axis=1))
+    centre = tri.mean(axis=1)
+    own = source[reps]
+    left_start, left_out = _coincident_faces(pts, fcs, centre, own, axis, start,
+                                             np.ascontiguousarray(both_ways[:, 1]))
+    count = np.diff(left_start)
+    owner = np.repeat(np.arange(len(reps)), count)
+    lowest = np.minimum.reduceat(left_out, left_start[:-1]) == own
+    facing = _facings(pts, fcs, left_out, axis[owner])
+    up = facing[left_start[:-1]] > 0  # f comes first in every list
+    front = np.zeros((n_groups, len(reps)), np.int64)
+    back = np.zeros((n_groups, len(reps)), np.int64)
+    for a in np.unique(axis):
+        perm = [(a + 1) % 3, (a + 2) % 3, a]  # cyclic: the faces keep their orientation
+        turned = np.ascontiguousarray(points[:, perm])
+        lo, size, dims, col_start, items = _columns(turned, faces)
+        rows = np.flatnonzero(axis == a)
+        queries = np.ascontiguousarray(centre[rows][:, perm])
+        in_rows = np.isin(owner, rows)
+        sub_start = np.r_[0, np.cumsum(count[rows])]
+        sub = np.ascontiguousarray(left_out[in_rows])
+        for k in range(n_groups):
+            ray_side = _ray_windings_without(queries, sub_start, sub, np.full(len(rows), k), turned, faces, lo, size,
+                                             dims, col_start, items, source, face_group)
+            across = ray_side + np.add.reduceat(np.where(input_group[left_out] == k, facing, 0),
+                                                left_start[:-1])[rows]
+            front[k, rows] = np.where(up[rows], ray_side, across)
+            back[k, rows] = np.where(up[rows], across, ray_side)
+    return front, back, count > 1, lowest
+
+
+@njit(cache=True)
+def _facings(pts, fcs, which, axis):
+    """:func:`_facing` of the input faces ``which`` (K,) along ``axis`` (K,)."""
+    out = np.empty(which.shape[0], np.int64)
+    for q in range(which.shape[0]):
+        out[q] = _facing(pts, fcs[which[q]], axis[q])
+    return out
+
+
+@njit(cache=True)
+def _representatives(points, faces, patch):
+    """A face of every patch, in patch order: the one whose normal has the largest z component (its centroid
+    is away from the patch's rim on a coarse patch; rays along z need no second index), the first such face on
+    a tie."""
+    n_patches = patch.max() + 1 if patch.shape[0] else 0
+    best = np.full(n_patches, -np.inf)
+    out = np.zeros(n_patches, np.int64)
+    for f in range(faces.shape[0]):
+        p0, p1, p2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        ux, uy, uz = points[p1, 0] - points[p0, 0], points[p1, 1] - points[p0, 1], points[p1, 2] - points[p0, 2]
+        vx, vy, vz = points[p2, 0] - points[p0, 0], points[p2, 1] - points[p0, 1], points[p2, 2] - points[p0, 2]
+        size = (abs(ux) + abs(uy) + abs(uz)) * (abs(vx) + abs(vy) + abs(vz))  # stands in for vertical faces' area
+        key = abs(ux * vy - uy * vx) + 1e-6 * size
+        if key > best[patch[f]]:
+            best[patch[f]] = key
+            out[patch[f]] = f
+    return out
+
+
+# --- the guarantee: a closed, oriented 2-manifold without self-intersections -----------------------------------
+
+
+class RepairError(RuntimeError):
+    """The repair or Boolean could not produce a closed, consistently oriented 2-manifold without
+    self-intersections; nothing broken is returned instead."""
+
+
+@njit(cache=True)
+def _fans(faces, partner, n_vertices):
+    """Split every vertex into its fans: the vertex of every corner (3F,) after the split (a vertex whose faces
+    form several fans gets a new vertex per further fan), and the number of vertices; -1 as the count when a
+    half-edge has no twin running the other way (not a closed, oriented surface)."""
+    n_corners = 3 * faces.shape[0]
+    corner_vertex = np.full(n_corners, -1, np.int64)
+    seen = np.zeros(n_vertices, np.bool_)
+    count = n_vertices
+    for c0 in range(n_corners):
+        if corner_vertex[c0] >= 0:
+            continue
+        v = faces[c0 // 3, c0 % 3]
+        vid = v
+        if seen[v]:
+            vid = count
+            count += 1
+        seen[v] = True
+        c = c0
+        while True:
+            corner_vertex[c] = vid
+            f, k = c // 3, c % 3
+            t = partner[3 * f + (k + 2) % 3]  # twin of the half-edge into v: it runs out of v
+            if t < 0 or faces[t // 3, t % 3] != v:
+                return corner_vertex, -1
+            c = t
+            if c == c0:
+                break
+            if corner_vertex[c] >= 0:
+                return corner_vertex, -1
+    return corner_vertex, count
+
+
+def _radial_twins(points, faces, partner, others):
+    """``partner`` (3F,) completed at edges of more than two faces: each half-edge a -> b is paired with the
+    face b -> a next to it around the edge on the side its solid lies (behind its normal), so that solids touching
+    along the edge come apart there. Edges whose faces do not alternate in direction around it stay unpaired."""
+    partner = partner.copy()
+    many = np.flatnonzero(others >= 2)
+    if len(many) == 0:
+        return partner
+    a = faces.ravel()[many]
+    b = faces[many // 3, (many % 3 + 1) % 3]
+    key = np.minimum(a, b) * len(points) + np.maximum(a, b)
+    order = np.lexsort((many, key))
+    many, a, b, key = many[order], a[order], b[order], key[order]
+    for run in np.split(np.arange(len(key)), np.flatnonzero(np.diff(key)) + 1):
+        lo, hi = min(a[run[0]], b[run[0]]), max(a[run[0]], b[run[0]])
+        axis = points[hi] - points[lo]
+        u = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 * np.linalg.norm(axis) else [0.0, 1.0, 0.0])
+        w = np.cross(axis, u)
+        apex = points[faces[many[run] // 3, (many[run] % 3 + 2) % 3]] - points[lo]
+        angle = np.arctan2(apex @ w, apex @ u)  # increasing in the right-hand turn about lo -> hi
+        ring = run[np.argsort(angle, kind="stable")]
+        up = a[ring] == lo  # faces running lo -> hi have their normal towards increasing angle
+        if len(ring) % 2 or np.any(up == np.roll(up, 1)):
+            continue
+        for i in np.flatnonzero(up):
+            h, t = many[ring[i]], many[ring[i - 1]]  # the solid of h lies towards decreasing angle
+            partner[h], partner[t] = t, h
+    return partner
+
+
+def _split_touching(points, faces):
+    """Vertices and edges where sheets touch split apart (fans and radial pairing, see :func:`_fans`): the new
+    points (V', 3), faces (F, 3), the old vertex of every new one (V',), or None when the faces do not pair up
+    into a closed, oriented surface."""
+    partner, others = halfedge_twins(faces, len(points))
+    partner = _radial_twins(points, faces, partner, others)
+    corner_vertex, count = _fans(faces, partner, len(points))
+    if count < 0:
+        return None
+    origin = np.arange(count)
+    new = corner_vertex >= len(points)
+    origin[corner_vertex[new]] = faces.ravel()[new]
+    return points[origin], corner_vertex.reshape(-1, 3), origin
+
+
+def _shells(points, faces):
+    """Shell (edge-connected part) of every face (F,), and the signed volume and area of every shell."""
+    shell = _patches(faces, len(points), np.zeros(0, np.int64))
+    tri = points[faces]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n = shell.max() + 1 if len(shell) else 0
+    volume = np.bincount(shell, np.einsum("ij,ij->i", tri[:, 0] - points.min(axis=0), cross) / 6.0, minlength=n)
+    area = np.bincount(shell, 0.5 * np.linalg.norm(cross, axis=1), minlength=n)
+    return shell, volume, area
+
+
+def mesh_problems(points, faces, *, query=None) -> list[str]:
+    """What keeps a mesh from being a closed, consistently oriented 2-manifold without self-intersections.
+
+    Checked: every edge in exactly two faces, running opposite ways in them;
+    the faces around every vertex form one fan; no shell (edge-connected
+    part) whose volume is below :data:`THIN_SHELL` times its area times the
+    bounding-box diagonal; the winding number just in front of every shell
+    is 0 (no part inside out or inside another); and, by the exact
+    predicates of :func:`~pverosion.kernels.exact.intersection_curves.intersection_curves`,
+    no two faces cross or overlap in a common plane (faces at coincident
+    vertices may touch there).
+
+    Parameters
+    ----------
+    points : array_like, shape (V, 3)
+    faces : array_like, shape (F, 3)
+    query : array_like of bool, shape (F,), optional
+        Test only the face pairs that involve these faces for crossings
+        (when the others are known not to meet each other); by default all.
+
+    Returns
+    -------
+    list of str
+        One sentence per kind of problem; empty for a valid mesh.
+    """
+    pts, fcs = as_triangle_mesh(points, faces)
+    return _problems(pts, fcs, query, None)
+
+
+def _problems(pts, fcs, query, shells) -> list[str]:
+    """:func:`mesh_problems` of a validated mesh, with its :func:`_shells` when known."""
+    n = len(pts)
+    problems = []
+    partner, others = halfedge_twins(fcs, n)
+    start = fcs.ravel()
+    # every edge in two faces (one other face at every half-edge), the twin running the other way: a valid
+    # surface skips the counts below, which name the problems
+    if not (np.all(others == 1) and np.all(start[partner] != start)):
+        count = edge_topology(fcs, n).face_count
+        if np.any(count != 2):
+            problems.append(f"{np.count_nonzero(count != 2)} edges are not in exactly two faces")
+        directed = fcs[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+        same_way = len(directed) - len(unique_rows(directed)[0])
+        if same_way:
+            problems.append(f"{same_way} edges run the same way in two faces (inconsistent winding)")
+        if problems:
+            return problems
+    _, n_split = _fans(fcs, partner, n)
+    if n_split != n:
+        problems.append(f"{n_split - n} vertices join separate fans of faces")
+    if len(fcs) == 0:
+        return problems
+    shell, volume, area = _shells(pts, fcs) if shells is None else shells
+    thin = np.abs(volume) <= THIN_SHELL * _diagonal(pts) * area
+    if thin.any():
+        problems.append(f"{np.count_nonzero(thin)} shells enclose no volume (|volume| <= {THIN_SHELL:g} x area x "
+                        "diagonal)")
+    reps = _representatives(pts, fcs, shell)
+    winding, down = _patch_windings(pts, fcs, np.zeros(len(fcs), np.int64), reps, np.full(len(reps), -1))
+    if np.any(winding - down != 0):
+        problems.append(f"{np.count_nonzero(winding - down != 0)} shells are inside out or inside another shell")
+    canon = canonical_vertices(pts)
+    curves = curves_of(pts, fcs, None, canon, query)
+    ends = curves.point_keys[curves.segments]  # (S, 2, 3)
+    ends_at_vertices = np.all(ends[:, :, 0] == VERTEX, axis=1)
+    corners = canon[fcs[curves.pairs]]  # (S, 2, 3)
+    shared = np.all(np.any(ends[:, :, None, None, 1] == corners[:, None], axis=3), axis=(1, 2))
+    crossing = np.count_nonzero(~(ends_at_vertices & shared))
+    if crossing:
+        problems.append(f"{crossing} pairs of faces cross")
+    overlaps = len(coplanar_overlaps(pts, fcs, curves))
+    if overlaps:
+        problems.append(f"{overlaps} pairs of faces overlap in a common plane")
+    return problems
+
+
+def _diagonal(points: np.ndarray) -> float:
+    return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0))) if len(points) else 0.0
+
+
+def _finalized(result: RepairResult) -> RepairResult:
+    """``result`` made a closed, oriented 2-manifold by rule, or :class:`RepairError`.
+
+    Where the kept surface touches itself (solids meeting at a vertex or
+    along an edge) the vertices are split, one per fan of faces and the faces
+    around an edge paired around their solids; shells that enclose no volume
+    (below :data:`THIN_SHELL`) are dropped. Then :func:`mesh_problems` must
+    find nothing.
+    """
+    points, faces = result.points, result.faces
+    # faces of the input left whole were tested against each other when the curves were found: only pairs with
+    # a piece of a cut face (it has a curve point) or a face at a split vertex are tested again
+    changed = result.on_curve.copy()
+    split = _split_touching(points, faces) if len(faces) else None
+    if split is not None:
+        points, faces, origin = split
+        moved = origin != np.arange(len(origin))
+        changed = changed[origin] | moved
+        changed[origin[moved]] = True
+        result = replace(result, points=points, faces=faces, source_vertex=result.source_vertex[origin],
+                         on_curve=result.on_curve[origin])
+    shells = None
+    if len(faces):
+        shells = shell, volume, area = _shells(points, faces)
+        keep = (np.abs(volume) > THIN_SHELL * _diagonal(points) * area)[shell]
+        if not keep.all():
+            shells = None
+            used = np.unique(faces[keep])
+            new_index = np.full(len(points), -1, np.int64)
+            new_index[used] = np.arange(len(used))
+            lines = [new_index[line] for line in result.polylines]
+            result = replace(result, points=points[used], faces=new_index[faces[keep]],
+                             source_face=result.source_face[keep], source_vertex=result.source_vertex[used],
+                             on_curve=result.on_curve[used], polylines=[line for line in lines if np.all(line >= 0)])
+            changed = changed[used]
+    problems = []
+    if len(result.faces):  # empty: nothing left, which is a valid result
+        problems = _problems(result.points, result.faces, changed[result.faces].any(axis=1), shells)
+    if problems:
+        raise RepairError("the result would not be a closed, oriented 2-manifold without self-intersections: "
+                          + "; ".join(problems))
+    return result
+
+
+# --- front ends --------------------------------------------------------------------------------------------------
+
+
+def outward_parts(points, faces) -> np.ndarray:
+    """The faces of a closed mesh oriented consistently and outward, part by part, for a repair or Boolean.
+
+    Every edge-connected part is made consistent
+    (:func:`~pverosion.kernels.mesh.orientation.orient_faces`) and turned to
+    enclose a positive volume; then a part is turned back into a cavity wall
+    when every one of its faces lies inside an odd number of the other parts
+    (winding numbers by rays from every face). Parts that overlap, or lie
+    inside another only partly, stay outward: overlapping parts merge in a
+    repair instead of cutting holes into each other.
+
+    Parameters
+    ----------
+    points : array_like, shape (V, 3)
+    faces : array_like, shape (F, 3)
+
+    Returns
+    -------
+    numpy.ndarray, shape (F, 3), int64
+    """
+    pts, fcs = as_triangle_mesh(points, faces)
+    oriented = orient_faces(pts, fcs, mode="outward")
+    fcs, part = oriented.faces, oriented.component
+    tri = pts[fcs] - pts.min(axis=0)
+    volume = np.bincount(part, np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])))
+    fcs = np.where((volume < 0.0)[part, None], fcs[:, ::-1], fcs)
+    if len(volume) > 1:
+        winding, down = _patch_windings(pts, fcs, part, np.arange(len(fcs)), np.full(len(fcs), -1))
+        odd = (winding - down) % 2 == 1  # the parts' own winding is 0 just in front of their faces
+        cavity = np.bincount(part, odd, minlength=len(volume)) == np.bincount(part, minlength=len(volume))
+        fcs = np.where(cavity[part, None], fcs[:, ::-1], fcs)
+    return fcs
+
+
+def _check_closed(faces: np.ndarray, n_vertices: int, what: str) -> None:
+    if len(boundary_edges(faces, n_vertices)):
+        raise InvalidMeshError(f"{what} must be closed: it has boundary edges (fill its holes first)")
+
+
+def _corefine(pts, fcs, group, operation) -> RepairResult:
+    """Cut the mesh along its intersection curves and keep the patches that bound the region of ``operation``
+    (None: repair), each operand's region being where its winding number is at least 1: a patch stays when that
+    region is on one side of it only, turned so that the region lies behind it."""
+    canon = canonical_vertices(pts)
+    curves = curves_of(pts, fcs, None, canon, coplanar_cuts=True)  # also where an operand meets itself
+    overlaps = coplanar_overlaps(pts, fcs, curves)
+    faces, source, point_id = _cut_faces(pts, fcs, canon, curves)
+    all_points = np.concatenate([pts, curves.points])
+    n_all = len(all_points)
+    seg = np.sort(point_id[curves.segments], axis=1)
+    cut_edges = np.unique(seg[:, 0] * n_all + seg[:, 1])
+    patch = _patches(faces, n_all, cut_edges, len(overlaps) > 0)
+    source_group = np.zeros(len(faces), np.int64) if group is None else np.asarray(group)[source]
+    reps = _representatives(all_points, faces, patch)
+    # winding numbers of A and B just in front of every patch; behind it, its own operand's is one more
+    n_groups = 1 if group is None else 2
+    own = source_group[reps]
+    front = np.zeros((n_groups, len(reps)), np.int64)
+    fcs_group = np.zeros(len(fcs), np.int64) if group is None else np.asarray(group)
+    pair_group = fcs_group[curves.pairs]
+    for k in range(n_groups):
+        # an operand's own winding number in front of its faces is 0 unless it meets itself (or it is a repair)
+        if group is not None and not np.any((pair_group[:, 0] == k) & (pair_group[:, 1] == k)):
+            rows = own != k
+        else:
+            rows = np.ones(len(reps), bool)
+        winding, down = _patch_windings(all_points, faces, source_group, reps[rows],
+                                        np.full(np.count_nonzero(rows), k))
+        front[k, rows] = winding - (down & (own[rows] == k))
+    back = front + (np.arange(n_groups)[:, None] == own)
+    lowest = np.ones(len(reps), bool)
+    if len(overlaps):  # patches on coplanar overlaps: the winding numbers across every face lying there
+        on_plane = np.isin(source[reps], overlaps)
+        rows = np.flatnonzero(on_plane)
+        front_c, back_c, shared, lowest_c = _coincident_windings(pts, fcs, fcs_group, overlaps, all_points, faces,
+                                                                 source, source_group, reps[rows], n_groups)
+        front[:, rows[shared]], back[:, rows[shared]] = front_c[:, shared], back_c[:, shared]
+        lowest[rows] = lowest_c
+    region = _REGION[operation]
+    inside_front, inside_back = region(*(front >= 1)), region(*(back >= 1))
+    stays, turns = (inside_front != inside_back) & lowest, inside_front
+    keep, turn = stays[patch], turns[patch]
+    faces = np.where(turn[:, None], faces[:, ::-1], faces)[keep]
+    source = source[keep]
+    used = np.unique(faces)
+    new_index = np.full(n_all, -1, np.int64)
+    new_index[used] = np.arange(len(used))
+    on_curve = np.zeros(n_all, bool)
+    on_curve[point_id] = True
+    polylines = [new_index[point_id[line]] for line in trace_polylines(curves)]
+    return RepairResult(points=all_points[used], faces=new_index[faces], source_face=source,
+                        source_vertex=np.where(used < len(pts), used, -1),
+                        on_curve=on_curve[used], curves=curves, polylines=polylines)
+
+
+def _tolerance(points: np.ndarray, tolerance: float) -> float:
+    if not (np.isfinite(tolerance) and tolerance >= 0.0):
+        raise ValueError(f"tolerance must be a finite number >= 0; got {tolerance!r}")
+    return float(tolerance) * float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+
+
+def _without_degenerate(pts, fcs, tol):
+    """The pre-pass: the mesh without nearly degenerate faces, with the input vertex and face of every vertex and
+    face."""
+    if tol == 0.0:
+        return pts, fcs, np.arange(len(pts)), np.arange(len(fcs))
+    clean = remove_degenerate_faces(pts, fcs, needle_length=tol, cap_height=tol)
+    return clean.points, clean.faces, clean.vertex_source, clean.face_source
+
+
+def _renumbered(result: RepairResult, vertex_source: np.ndarray, face_source: np.ndarray) -> RepairResult:
+    """``result`` with its sources taken one step further back (vertex_source (V,) may hold -1)."""
+    source = result.source_vertex
+    return replace(result, source_face=face_source[result.source_face],
+                   source_vertex=np.where(source >= 0, vertex_source[np.maximum(source, 0)], -1))
+
+
+def _improved(result: RepairResult, edge: float) -> RepairResult:
+    """Needles collapsed and caps flipped or split, the curves kept; vertices of faces that would meet another
+    face are locked and the improvement starts over (thrice at most, then the result stays as it was)."""
+    locked = np.zeros(len(result.points), bool)
+    for _ in range(3):
+        clean = remove_degenerate_faces(result.points, result.faces, needle_length=IMPROVE_EDGE_RATIO * edge,
+                                        max_angle=IMPROVE_MAX_ANGLE, polylines=result.polylines, locked=locked)
+        meets = intersecting_faces(clean.points, clean.faces)
+        if not meets.any():
+            improved = replace(result, points=clean.points, faces=clean.faces, on_curve=clean.on_curve,
+                               polylines=clean.polylines, source_vertex=clean.vertex_source,
+                               source_face=clean.face_source)
+            return _renumbered(improved, result.source_vertex, result.source_face)
+        locked[result.faces[clean.face_source[meets]].ravel()] = True
+    warnings.warn("the mesh improvement after the repair made faces meet; the repaired mesh is left as it was",
+                  RuntimeWarning, stacklevel=3)
+    return result
+
+
+def _checked(result: RepairResult, edge: float | None) -> RepairResult:
+    """:func:`_finalized` ``result``, improved first when ``edge`` (the input's average edge length) is given;
+    should the improved mesh fail the checks, the result unimproved (with a warning)."""
+    if edge is not None:
+        improved = _improved(result, edge)
+        if improved is not result:
+            try:
+                return _finalized(improved)
+            except RepairError:
+                warnings.warn("the mesh improvement after the repair broke the result's checks; the repaired mesh "
+                              "is left as it was", RuntimeWarning, stacklevel=3)
+    return _finalized(result)
+
+
+def repair_intersections(points, faces, *, tolerance: float = REPAIR_TOLERANCE, improve: bool = False
+                         ) -> RepairResult:
+    """Remove the self-intersections of a closed mesh (and intersections between its closed parts).
+
+    The result bounds the region where the winding number of the input is at
+    least 1: parts of the surface that ended up inside the solid, or turned
+    inside out, are cut away along the intersection curves, and the mesh may
+    fall apart into several closed pieces.
+
+    Parameters
+    ----------
+    points : array_like, shape (V, 3)
+    faces : array_like, shape (F, 3)
+        A closed mesh, oriented outward.
+    tolerance : float, default: :data:`REPAIR_TOLERANCE`
+        Pre-pass: nearly degenerate faces (an edge shorter than this, or a
+        corner this close to the opposite edge, relative to the bounding-box
+        diagonal) are removed first by edge collapse and edge flip. 0 skips
+        the pre-pass (an exactly degenerate face on a curve then cannot be cut).
+    improve : bool, default: False
+        Improve the mesh afterwards: collapse the needles and flip or split
+        the caps that cutting along the curves made (edges shorter than
+        :data:`IMPROVE_EDGE_RATIO` times the input's average edge length,
+        angles above :data:`IMPROVE_MAX_ANGLE`). Curve vertices stay where
+        they are; no face may come to meet another.
+
+    Returns
+    -------
+    RepairResult
+
+    Raises
+    ------
+    InvalidMeshError
+        If the mesh is not closed.
+    ValueError
+        For a negative or non-finite tolerance.
+    RepairError
+        If the result would not be a closed, oriented 2-manifold without
+        self-intersections.
+    """
+    pts, fcs = as_triangle_mesh(points, faces)
+    _check_closed(fcs, len(pts), "the mesh")
+    clean_pts, clean_fcs, vertex_source, face_source = _without_degenerate(pts, fcs, _tolerance(pts, tolerance))
+    result = _renumbered(_corefine(clean_pts, clean_fcs, None, None), vertex_source, face_source)
+    return _checked(result, average_edge_length(pts, fcs) if improve else None)
+
+
+def boolean_meshes(points_a, faces_a, points_b, faces_b, operation: str, *, tolerance: float = REPAIR_TOLERANCE,
+                   improve: bool = False) -> RepairResult:
+    """Union, intersection or difference of two closed meshes.
+
+    Parameters
+    ----------
+    points_a, faces_a : array_like, shapes (Va, 3) and (Fa, 3)
+        Operand A, closed and oriented outward.
+    points_b, faces_b : array_like, shapes (Vb, 3) and (Fb, 3)
+        Operand B, closed and oriented outward.
+    operation : {"union", "intersection", "difference", "reverse_difference"}
+        A ∪ B, A ∩ B, A ∖ B or B ∖ A.
+    tolerance : float, default: :data:`REPAIR_TOLERANCE`
+        Pre-pass on each operand (relative to the bounding-box diagonal of
+        both), see :func:`repair_intersections`.
+    improve : bool, default: False
+        Mesh improvement afterwards, see :func:`repair_intersections`.
+
+    Returns
+    -------
+    RepairResult
+        Faces of B are numbered after those of A in ``source_face``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown operation, or a negative or non-finite tolerance.
+    InvalidMeshError
+        If an operand is not closed.
+    RepairError
+        If the result would not be a closed, oriented 2-manifold without
+        self-intersections.
+    """
+    if operation not in OPERATIONS:
+        raise ValueError(f"operation must be one of {OPERATIONS}; got {operation!r}")
+    pa, fa = as_triangle_mesh(points_a, faces_a)
+    pb, fb = as_triangle_mesh(points_b, faces_b)
+    _check_closed(fa, len(pa), "mesh A")
+    _check_closed(fb, len(pb), "mesh B")
+    tol = _tolerance(np.concatenate([pa, pb]), tolerance)
+    ca, cb = _without_degenerate(pa, fa, tol), _without_degenerate(pb, fb, tol)
+    pts = np.concatenate([ca[0], cb[0]])
+    fcs = np.concatenate([ca[1], cb[1] + len(ca[0])])
+    group = np.repeat([0, 1], [len(ca[1]), len(cb[1])])
+    result = _renumbered(_corefine(pts, fcs, group, operation), np.concatenate([ca[2], cb[2] + len(pa)]),
+                         np.concatenate([ca[3], cb[3] + len(fa)]))
+    edge = average_edge_length(np.concatenate([pa, pb]), np.concatenate([fa, fb + len(pa)])) if improve else None
+    return _checked(result, edge)

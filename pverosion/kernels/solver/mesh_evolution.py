@@ -1,0 +1,433 @@
+"""Shared machinery of the stages that move the vertices of a closed mesh step by step.
+
+:class:`GuardedMeshSolver` holds the evolving mesh (points, faces, input ids,
+cumulative displacement), the mesh improvement of Skorkovská 2019 §4.1
+(collapse of edges shorter than ``min_edge_ratio * e_avg`` after every step,
+:mod:`pverosion.kernels.mesh.remesh`) and the self-intersection guard with
+rollback. Weathering and hydraulic erosion subclass it and only write their
+step.
+
+Self-intersection guard (periodic, with rollback): every ``check_every``
+steps, and at every step the caller asks to see, the mesh is tested for
+intersecting non-adjacent triangles
+(:func:`pverosion.kernels.exact.intersection.intersecting_faces`). A clean mesh
+becomes the new restart point. When intersections have appeared, the solver
+restores the last clean state, halves the displacement length of the
+vertices of the intersecting faces and of their two-ring neighbourhood, and
+redoes the steps (the paper's "restart with shorter displacements", applied
+where the mesh tangled instead of everywhere, so the rest of the model keeps
+its pace). The halving is kept for the rest of the run; a vertex halved more
+than ``max_halvings`` times is frozen (it stops moving and is never
+collapsed). ``retries`` counts the rollbacks, ``frozen`` the frozen
+vertices. Subclasses with more state than the mesh (a fluid, say) extend
+:meth:`GuardedMeshSolver._extra_state` and
+:meth:`GuardedMeshSolver._restore_extra`, so a rollback replays the same
+steps bit for bit.
+
+That is ``repair="retry"``. With ``repair="topology"`` the guard instead
+accepts that two parts of the surface met (erosion pierced a thin wall,
+deposition merged two lobes): it cuts the mesh along the intersection curves
+and keeps the boundary of the region of winding number >= 1
+(:func:`pverosion.kernels.repair.mesh_repair.repair_intersections`), which may
+open holes or split the mesh into pieces, and the run goes on from there
+(``repairs`` counts them). ``repair="off"`` leaves intersections in place.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+import scipy.sparse as sp
+from numba import njit
+from scipy.spatial import cKDTree
+
+from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._scatter import CHUNKS, chunk_range
+from pverosion.kernels._threads import for_chunks
+from pverosion.kernels.curvature.operator import CurvatureOperator
+from pverosion.kernels.exact.intersection import intersecting_faces, spatial_order
+from pverosion.kernels.mesh.geometry import vertex_normals
+from pverosion.kernels.mesh.orientation import ORIENTATIONS, orient_faces
+from pverosion.kernels.mesh.remesh import collapse_short_edges, short_edge_candidates
+from pverosion.kernels.mesh.topology import edge_topology, one_ring
+from pverosion.kernels.solver.protocol import SolverLoop
+from pverosion.kernels.validation import as_triangle_mesh
+
+__all__ = ["REPAIR_MODES", "GuardedMeshSolver", "volume_area"]
+
+REPAIR_MODES = ("retry", "topology", "off")
+"""Accepted values of the ``repair`` option."""
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _volume_area_chunk(points, faces, origin, partial, c):
+    """Add six times the signed volume and twice the area of chunk ``c`` of the faces to ``partial[c]``."""
+    lo, hi = chunk_range(faces.shape[0], c)
+    for f in range(lo, hi):
+        a = v3.sub(v3.row(points, faces[f, 0]), (origin[0], origin[1], origin[2]))
+        b = v3.sub(v3.row(points, faces[f, 1]), (origin[0], origin[1], origin[2]))
+        cc = v3.sub(v3.row(points, faces[f, 2]), (origin[0], origin[1], origin[2]))
+        partial[c, 0] += v3.dot(a, v3.cross(b, cc))
+        partial[c, 1] += v3.norm(v3.cross(v3.sub(b, a), v3.sub(cc, a)))
+
+
+def volume_area(points: np.ndarray, faces: np.ndarray, origin: np.ndarray) -> tuple[float, float]:
+    """Enclosed volume and area; summed in fixed face chunks, so bit-identical for any thread count.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3), float64
+    faces : numpy.ndarray, shape (F, 3), int64
+    origin : numpy.ndarray, shape (3,), float64
+        Apex of the tetrahedra whose signed volumes are summed.
+
+    Returns
+    -------
+    volume, area : float
+    """
+    partial = np.zeros((CHUNKS, 2))
+    for_chunks(_volume_area_chunk, faces.shape[0], points, faces, origin, partial)
+    volume = 0.0
+    area = 0.0
+    for c in range(CHUNKS):
+        volume += float(partial[c, 0])
+        area += float(partial[c, 1])
+    return volume / 6.0, area / 2.0
+
+
+@dataclass
+class _State:
+    """Everything a rollback restores."""
+
+    points: np.ndarray
+    faces: np.ndarray
+    ids: np.ndarray
+    displacement: np.ndarray
+    step: int
+    collapses: int
+    stats: list = field(default_factory=list)
+    extra: Any = None
+
+
+class GuardedMeshSolver(SolverLoop):
+    """Base of the vertex-displacement stages: mesh state, improvement, self-intersection guard.
+
+    Parameters
+    ----------
+    points : array_like, shape (V, 3)
+    faces : array_like, shape (F, 3)
+        Triangles; they are first oriented as ``orientation`` says.
+    min_edge_ratio : float, default: 0.1
+        Mesh improvement: collapse edges shorter than ``min_edge_ratio *
+        e_avg`` after every step; 0 switches it off.
+    check_every : int, default: 10
+        Self-intersection guard period in steps; 0 switches the guard off.
+    max_halvings : int, default: 4
+        Freeze a vertex whose displacement had to be halved more than this
+        many times.
+    orientation : {"outward", "inward", "keep"}, default: "outward"
+    repair : {"retry", "topology", "off"}, default: "retry"
+        What the guard does when the surface meets itself: roll back and
+        shorten the steps there, cut the mesh along the intersection curves
+        and go on, or nothing (no guard).
+
+    Attributes
+    ----------
+    points, faces : numpy.ndarray
+        Current mesh.
+    ids : numpy.ndarray, shape (V',)
+        Input index of every current vertex (collapses remove vertices).
+    displacement : numpy.ndarray, shape (V', 3)
+        Cumulative displacement of every current vertex.
+    initial_normals : numpy.ndarray, shape (V, 3)
+        Outward unit normals of the input vertices (index with ``ids``).
+    step_count : int
+        Steps done (time).
+    retries : int
+        Rollbacks made by the self-intersection guard.
+    repairs : int
+        Topology repairs made by the guard (``repair="topology"``).
+    collapses : int
+        Edges collapsed by the mesh improvement.
+    profile : dict or None
+        Set it to ``{}`` to collect the seconds spent per part of each step.
+    """
+
+    STAT_NAMES: ClassVar[tuple[str, ...]] = ()
+    """Names of the per-step statistics (one row per step, step 0 first); rows come from :meth:`_row`."""
+    PROGRESS_LABEL: ClassVar[str] = "steps"
+    _curvature_estimator: ClassVar[type] = CurvatureOperator
+    """Curvature of the current points, built per connectivity (:class:`CurvatureTracker` where few points move)."""
+
+    def __init__(
+        self,
+        points,
+        faces,
+        *,
+        min_edge_ratio: float = 0.1,
+        check_every: int = 10,
+        max_halvings: int = 4,
+        orientation: str = "outward",
+        repair: str = "retry",
+    ) -> None:
+        pts, fcs = as_triangle_mesh(points, faces)
+        if not (np.isfinite(min_edge_ratio) and 0.0 <= min_edge_ratio < 1.0):
+            raise ValueError(f"min_edge_ratio must be in [0, 1); got {min_edge_ratio!r}")
+        if int(check_every) != check_every or check_every < 0:
+            raise ValueError(f"check_every must be an integer >= 0; got {check_every!r}")
+        if int(max_halvings) != max_halvings or max_halvings < 0:
+            raise ValueError(f"max_halvings must be an integer >= 0; got {max_halvings!r}")
+        if orientation not in ORIENTATIONS:
+            raise ValueError(f"orientation must be one of {ORIENTATIONS}; got {orientation!r}")
+        if repair not in REPAIR_MODES:
+            raise ValueError(f"repair must be one of {REPAIR_MODES}; got {repair!r}")
+        self.min_edge_ratio = float(min_edge_ratio)
+        self.repair = repair
+        self.check_every = 0 if repair == "off" else int(check_every)
+        self.max_halvings = int(max_halvings)
+        self.points = pts.copy()
+        self.faces = orient_faces(pts, fcs, mode=orientation).faces
+        self.ids = np.arange(len(pts))
+        self.displacement = np.zeros_like(pts)
+        self.step_count = 0
+        self.retries = 0
+        self.repairs = 0
+        self.collapses = 0
+        self.profile: dict[str, list[float]] | None = None
+        self._scale = np.ones(len(pts))  # displacement length factor per input vertex
+        self._origin = pts.mean(axis=0)
+        self._build_topology()
+        self.initial_normals = vertex_normals(self.points, self.faces, weighting="area")
+        self._volume0 = self.volume()
+        self._stats: list[tuple] = []
+        self._baseline = 0
+        self._clean: _State | None = None
+
+    def _start(self) -> None:
+        """Record step 0 and the first restart point; subclasses call it at the end of their ``__init__``."""
+        self._stats = [self._row()]
+        if self.check_every:
+            self._baseline = int(np.count_nonzero(self._intersections()))
+            if self._baseline:
+                warnings.warn(
+                    f"the input mesh already has {self._baseline} self-intersecting faces; "
+                    "the guard only rejects steps that add more",
+                    RuntimeWarning,
+                    stacklevel=3,
+                )
+        self._clean = self._snapshot()
+
+    # -- hooks ---------------------------------------------------------------------------
+
+    def _step(self) -> None:
+        """Advance one step (move vertices, improve the mesh, append a statistics row)."""
+        raise NotImplementedError
+
+    def _row(self) -> tuple:
+        """Statistics of the current state, in :attr:`STAT_NAMES` order."""
+        raise NotImplementedError
+
+    def _extra_state(self) -> Any:
+        """State beyond the mesh that a rollback must restore (None: nothing)."""
+        return None
+
+    def _restore_extra(self, extra: Any) -> None:
+        """Restore what :meth:`_extra_state` returned."""
+
+    def progress_postfix(self) -> dict:
+        return {"retries": self.retries, "collapses": self.collapses}
+
+    # -- mesh ----------------------------------------------------------------------------
+
+    def volume(self) -> float:
+        """Enclosed volume of the current mesh."""
+        return float(volume_area(self.points, self.faces, self._origin)[0])
+
+    def area(self) -> float:
+        """Surface area of the current mesh."""
+        return float(volume_area(self.points, self.faces, self._origin)[1])
+
+    def _build_topology(self) -> None:
+        """Everything that depends on the faces only; rebuilt after edge collapses."""
+        n = len(self.points)
+        self._curvature = self._curvature_estimator(self.faces, n)
+        topo = edge_topology(self.faces, n)
+        self._ring = one_ring(self.faces, n, edges=topo.edges)
+        self._edges = topo.edges
+        self._usable = topo.face_count == 2
+        self._fixed = topo.irregular_vertices(n)
+        # curvature statistics leave out the fixed vertices and their one-ring, whose estimates an open rim spoils
+        ring_ptr, ring_idx = self._ring
+        self._interior = ~self._fixed
+        self._interior[ring_idx[np.repeat(self._fixed, np.diff(ring_ptr))]] = False
+        self._order = None  # spatial face order of the intersection check, made on first use
+
+    def mean_curvature(self) -> np.ndarray:
+        """Mean curvature H (V',) of the current mesh."""
+        return self._curvature(self.points).mean
+
+    def erosion_depth(self) -> np.ndarray:
+        """Cumulative displacement (V',) of every current vertex into the input surface, along its input normal."""
+        return -np.einsum("ij,ij->i", self.displacement, self.initial_normals[self.ids])
+
+    def _improve(self, min_length: float, *, movable: np.ndarray | None = None) -> None:
+        """Collapse edges shorter than ``min_length`` (only between ``movable`` vertices (V',) when given)."""
+        candidates = short_edge_candidates(self.points, self._edges, self._usable, min_length)
+        if len(candidates) == 0:
+            return
+        locked = self._fixed | (self._scale[self.ids] == 0.0)
+        if movable is not None:
+            locked = locked | ~movable
+        result = collapse_short_edges(self.points, self.faces, candidates, locked)
+        if result.n_collapsed == 0:
+            return
+        self.points, self.faces = result.points, result.faces
+        self.ids = self.ids[result.kept]
+        self.displacement = self.displacement[result.kept]
+        self.collapses += result.n_collapsed
+        self._after_collapse(result.kept)
+        self._build_topology()
+
+    def _after_collapse(self, kept: np.ndarray) -> None:
+        """Carry per-vertex state of a subclass over to the ``kept`` vertices (input indices)."""
+
+    # -- state ---------------------------------------------------------------------------
+
+    def _snapshot(self) -> _State:
+        return _State(self.points.copy(), self.faces.copy(), self.ids.copy(), self.displacement.copy(),
+                      self.step_count, self.collapses, list(self._stats), self._extra_state())
+
+    def _restore(self, state: _State) -> None:
+        faces_changed = len(state.faces) != len(self.faces) or not np.array_equal(state.faces, self.faces)
+        self.points = state.points.copy()
+        self.faces = state.faces.copy()
+        self.ids = state.ids.copy()
+        self.displacement = state.displacement.copy()
+        self.step_count = state.step
+        self.collapses = state.collapses
+        self._stats = list(state.stats)
+        if faces_changed:
+            self._build_topology()
+        self._restore_extra(state.extra)
+
+    def _intersections(self, query: np.ndarray | None = None) -> np.ndarray:
+        """Mask (F,) of the faces meeting a non-adjacent face (in pairs with a ``query`` face)."""
+        if self._order is None:
+            self._order = spatial_order(self.points, self.faces)
+        return intersecting_faces(self.points, self.faces, query=query, order=self._order)
+
+    def _moved_faces(self) -> np.ndarray | None:
+        """Faces with a vertex moved since the restart point, when no collapse happened since."""
+        clean = self._clean
+        if self._baseline or len(clean.faces) != len(self.faces) or not np.array_equal(clean.faces, self.faces):
+            return None  # a self-intersecting input is always compared whole against its baseline
+        moved = np.any(self.points != clean.points, axis=1)
+        return moved[self.faces].any(axis=1)
+
+    def _lap(self, part: str, start: float) -> float:
+        """Add the time since ``start`` to :attr:`profile` (when profiling) and restart the clock."""
+        now = time.perf_counter()
+        if self.profile is not None:
+            self.profile.setdefault(part, []).append(now - start)
+        return now
+
+    # -- running -------------------------------------------------------------------------
+
+    def step(self) -> None:
+        """Advance one step that the guard accepts (a rejected step is undone and tried again, shorter)."""
+        self.run(1)
+
+    def _advance(self, checkpoint: bool) -> bool:
+        self._step()
+        return not (self._due(checkpoint) and not self._accept())
+
+    @property
+    def state(self) -> dict[str, np.ndarray]:
+        """The current mesh (``points`` (V', 3), ``faces`` (F', 3)), input ``ids`` (V',) and ``displacement`` (V', 3)."""
+        return {"points": self.points, "faces": self.faces, "ids": self.ids, "displacement": self.displacement}
+
+    def _due(self, forced: bool) -> bool:
+        if not self.check_every:
+            return False
+        return forced or self.step_count - self._clean.step >= self.check_every
+
+    def _accept(self) -> bool:
+        """Check the mesh; keep it as the restart point, or roll back and shorten local steps."""
+        clock = time.perf_counter()
+        # faces that both kept their place were clean at the restart point and still are
+        hits = self._intersections(self._moved_faces())
+        self._lap("guard", clock)
+        if np.count_nonzero(hits) <= self._baseline:
+            self._clean = self._snapshot()
+            return True
+        if self.repair == "topology":
+            # imported here: the repair's exact predicates compile on import, and most runs never repair
+            from pverosion.kernels.repair.mesh_repair import RepairError
+
+            try:
+                self._repair_topology()
+            except RepairError:
+                pass  # no clean surface came out: roll back as "retry" does
+            else:
+                self._clean = self._snapshot()
+                return True
+        # halve the steps of the tangled faces' vertices and their two-ring neighbourhood
+        near = np.zeros(len(self.points))
+        near[self.faces[hits].ravel()] = 1.0
+        ring_ptr, ring_idx = self._ring
+        pattern = sp.csr_matrix((np.ones(len(ring_idx)), ring_idx, ring_ptr), shape=(len(near), len(near)))
+        near = near + pattern @ near
+        near = near + pattern @ near
+        ids = self.ids[near > 0]
+        if not np.any(self._scale[ids] > 0.0):
+            raise RuntimeError(
+                f"self-intersections appeared after step {self._clean.step} next to frozen vertices only; "
+                "switch mesh improvement off (min_edge_ratio=0) or repair the input"
+            )
+        self._scale[ids] *= 0.5
+        self._scale[self._scale < 0.5**self.max_halvings] = 0.0
+        self.retries += 1
+        self._restore(self._clean)
+        return False
+
+    def _repair_topology(self) -> None:
+        """Cut the mesh along its intersection curves and keep the boundary of winding number >= 1."""
+        from pverosion.kernels.repair.mesh_repair import repair_intersections
+
+        clock = time.perf_counter()
+        result = repair_intersections(self.points, self.faces)
+        source = result.source_vertex
+        # a new vertex (on a curve) takes the state of the first corner of the face it was cut from
+        donor = np.full(len(result.points), -1, np.int64)
+        donor[result.faces.ravel()] = self.faces[np.repeat(result.source_face, 3), 0]
+        old = np.where(source >= 0, source, donor)
+        # an old vertex the repair cut away (or merged into a coincident one) leaves its state to the nearest
+        # vertex that stays
+        gone = np.ones(len(self.points), bool)
+        gone[source[source >= 0]] = False
+        heir = np.full(len(self.points), -1, np.int64)
+        if gone.any():
+            heir[gone] = cKDTree(result.points).query(self.points[gone])[1]
+        self.points, self.faces = result.points, result.faces
+        self.ids = self.ids[old]
+        self.displacement = self.displacement[old]
+        self._after_repair(source, old, heir)
+        self._build_topology()
+        self._baseline = 0
+        self.repairs += 1
+        self._lap("repair", clock)
+
+    def _after_repair(self, source: np.ndarray, donor: np.ndarray, heir: np.ndarray) -> None:
+        """Carry per-vertex state of a subclass over a topology repair: ``source`` (V',) is the old index of
+        every vertex (-1 for a new one on a curve), ``donor`` (V',) an old vertex next to it, and ``heir`` (V,)
+        the new vertex nearest to every old vertex that is gone (-1 for those that stay)."""
+        self._after_collapse(donor)
+
+    @property
+    def frozen(self) -> int:
+        """Number of current vertices frozen by the self-intersection guard."""
+        return int(np.count_nonzero(self._scale[self.ids] == 0.0))
