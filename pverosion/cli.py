@@ -28,14 +28,16 @@ __all__ = ["build_parser", "main"]
 
 
 def _add_filter_options(parser: argparse.ArgumentParser, filter_cls: type[ErosionFilter]) -> None:
+    advanced = parser.add_argument_group("advanced options (solver tuning)")
     for p in filter_cls.PARAMS:
         flag = "--" + p.name.replace("_", "-")
+        group = advanced if p.advanced else parser
         if p.kind is bool:
-            parser.add_argument(flag, dest=p.name, action=argparse.BooleanOptionalAction, default=p.default,
-                                help=p.help)
+            group.add_argument(flag, dest=p.name, action=argparse.BooleanOptionalAction, default=p.default,
+                               help=p.help)
         else:
-            parser.add_argument(flag, dest=p.name, type=p.kind, choices=p.choices, default=p.default,
-                                help=f"{p.help} (default: {p.default})")
+            group.add_argument(flag, dest=p.name, type=p.kind, choices=p.choices, default=p.default,
+                               help=f"{p.help} (default: {p.default})")
 
 
 def _port_label(name: str) -> str:
