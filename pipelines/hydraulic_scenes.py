@@ -50,8 +50,8 @@ def run_scene(name: str, out: Path, *, quick: bool, save_every: int) -> dict:
     if quick:
         iterations = max(iterations // 5, 10)
     lo, hi = scene.domain
-    alg = HydraulicErosion(iterations=iterations, emitter=";".join(scene.emitters), drain=";".join(scene.drains),
-                           radius=scene.radius, domain=",".join(repr(float(v)) for v in (*lo, *hi)), **options)
+    alg = HydraulicErosion(iterations=iterations, emitter=scene.emitters, drain=scene.drains, radius=scene.radius,
+                           domain=(*lo, *hi), **options)
     mesh = scene.mesh
     base = float(mesh.bounds[4]) + 1e-6
     series = TimeSeriesWriter(out / f"{name}.pvd")

@@ -35,6 +35,7 @@ __all__ = [
     "TimeSteppedFilter",
     "check_interrupt",
     "deferred_interrupt",
+    "numbers_text",
     "output_times",
     "parse_numbers",
     "polydata_triangles",
@@ -210,7 +211,12 @@ class Param:
             raise ValueError(f"{self.name} needs at least one number")
         if not np.isfinite(values).all():
             raise ValueError(f"{self.name} must be finite numbers; got {value!r}")
-        return ",".join(repr(float(v)) for v in values)
+        return numbers_text(values)
+
+
+def numbers_text(values) -> str:
+    """The text ``"x,y,z"`` of numbers, exact (``repr``) so :func:`parse_numbers` reads the same floats back."""
+    return ",".join(repr(float(v)) for v in values)
 
 
 def parse_numbers(text: str, name: str, *, count: int | None = None) -> list[float]:

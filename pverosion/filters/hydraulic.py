@@ -15,6 +15,7 @@ from vtkmodules.vtkCommonDataModel import vtkPolyData
 
 from pverosion.filters.base import (
     Param,
+    numbers_text,
     parse_numbers,
     set_field_value,
     set_multiblock,
@@ -44,10 +45,6 @@ def parse_emitters(text: str) -> list[Emitter]:
 def parse_drains(text: str) -> list[Drain]:
     """Drains from ``"plane:nx,ny,nz,d"`` / ``"box:xmin,ymin,zmin,xmax,ymax,zmax"`` separated by ``;``."""
     return [Drain.parse(part) for part in text.split(";") if part.strip()]
-
-
-def _numbers_text(values) -> str:
-    return ",".join(repr(float(v)) for v in values)
 
 
 def to_emitters(value) -> tuple[Emitter, ...]:
@@ -80,7 +77,7 @@ def to_emitters(value) -> tuple[Emitter, ...]:
 
 def format_emitters(emitters) -> str:
     """The text ``"x,y,z,dx,dy,dz,r,rate[,speed];..."`` of emitters (read back by :func:`parse_emitters`)."""
-    return ";".join(_numbers_text([*e.position, *e.direction, e.radius, e.rate, *([] if e.speed is None else [e.speed])])
+    return ";".join(numbers_text([*e.position, *e.direction, e.radius, e.rate, *([] if e.speed is None else [e.speed])])
                     for e in emitters)
 
 
@@ -106,7 +103,7 @@ def to_drains(value) -> tuple[Drain, ...]:
 
 def format_drains(drains) -> str:
     """The text ``"plane:nx,ny,nz,d;box:..."`` of drains (read back by :func:`parse_drains`)."""
-    return ";".join(f"{d.kind}:{_numbers_text(d.values)}" for d in drains)
+    return ";".join(f"{d.kind}:{numbers_text(d.values)}" for d in drains)
 
 
 BYTES_PER_PARTICLE = 2048

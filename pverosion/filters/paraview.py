@@ -79,7 +79,7 @@ def _convert(p: Param, values: tuple):
     if p.choices is not None:
         return p.choices[int(values[0])]
     if vector_size(p) == 3:
-        return ",".join(repr(float(v)) for v in values)
+        return tuple(float(v) for v in values)  # a vector option takes its numbers (Param.validate)
     value = values[0]
     if p.kind is str:
         return "" if value is None else str(value)  # ParaView passes None for an empty string
