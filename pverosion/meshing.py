@@ -14,7 +14,7 @@ from scipy.spatial import cKDTree
 from pverosion.kernels.mesh.topology import edge_topology
 from pverosion.kernels.validation import as_triangle_mesh
 
-__all__ = ["fill_holes", "triangular_lattice", "points_clear_of", "resample", "triangulate"]
+__all__ = ["fill_holes", "points_clear_of", "resample", "triangular_lattice", "triangulate"]
 
 
 def resample(curve: np.ndarray, spacing: float) -> np.ndarray:

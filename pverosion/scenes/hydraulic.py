@@ -80,7 +80,7 @@ def _emitter(position, direction, disc: float, radius: float, speed: float) -> s
     rounded to a few digits can exceed what the disc emits by the rounding.
     """
     spacing = 2.0 * radius
-    layer = len(Emitter(position=tuple(position), direction=tuple(direction), radius=disc, rate=1.0).triangular_lattice(spacing))
+    layer = len(Emitter(position=tuple(position), direction=tuple(direction), radius=disc, rate=1.0).lattice(spacing))
     rate = layer * speed / spacing * (1.0 - 1e-9)
     values = [*np.asarray(position, dtype=float), *np.asarray(direction, dtype=float), disc, rate, speed]
     return ",".join(repr(float(v)) for v in values)

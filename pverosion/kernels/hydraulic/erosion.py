@@ -66,6 +66,7 @@ from pverosion.kernels.mesh.geometry import average_edge_length, point_areas
 from pverosion.kernels.mesh.laplacian import laplacian_vectors
 from pverosion.kernels.mesh.topology import vertex_face_incidence
 from pverosion.kernels.solver.mesh_evolution import GuardedMeshSolver, volume_area
+from pverosion.kernels.spatial.grid import bucket_points
 
 __all__ = ["MODELS", "STAT_NAMES", "HydraulicSolver", "ShearParameters", "nearest_particle_distance"]
 
@@ -113,29 +114,6 @@ class ShearParameters:
 
 
 # --- affected vertices ----------------------------------------------------------------------------------------
-
-
-@njit(cache=True)
-def _bucket(pos, lo, size, dims):
-    """Counting sort of ``pos`` (N, 3) into grid cells: (start (cells + 1,), order (N,))."""
-    n = pos.shape[0]
-    n_cells = dims[0] * dims[1] * dims[2]
-    cell = np.empty(n, np.int64)
-    start = np.zeros(n_cells + 1, np.int64)
-    for i in range(n):
-        ix = min(max(int((pos[i, 0] - lo[0]) / size), 0), dims[0] - 1)
-        iy = min(max(int((pos[i, 1] - lo[1]) / size), 0), dims[1] - 1)
-        iz = min(max(int((pos[i, 2] - lo[2]) / size), 0), dims[2] - 1)
-        cell[i] = ix + dims[0] * (iy + dims[1] * iz)
-        start[cell[i] + 1] += 1
-    for c in range(n_cells):
-        start[c + 1] += start[c]
-    fill = start[:-1].copy()
-    order = np.empty(n, np.int64)
-    for i in range(n):
-        order[fill[cell[i]]] = i
-        fill[cell[i]] += 1
-    return start, order
 
 
 @njit(cache=True, parallel=True)
@@ -194,7 +172,7 @@ def nearest_particle_distance(points: np.ndarray, particles: np.ndarray, radius:
     if cells > _MAX_CELLS:  # coarser cells still find every particle within the radius
         size *= float((cells / _MAX_CELLS) ** (1.0 / 3.0)) * 1.01
     dims = (np.floor(extent / size) + 1).astype(np.int64)
-    start, order = _bucket(particles, lo, size, dims)
+    start, order = bucket_points(particles, lo, size, dims)
     return _nearest(points, particles, lo, size, dims, start, order, float(radius))
 
 

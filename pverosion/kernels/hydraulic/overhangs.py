@@ -26,7 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
-from pverosion.kernels.spatial.mesh_query import bucket_boxes
+from pverosion.kernels.spatial.grid import bucket_boxes
 from pverosion.kernels.tolerances import RAY_SHADOW, RAY_SHIFT, RAY_START
 from pverosion.kernels.validation import as_triangle_mesh
 

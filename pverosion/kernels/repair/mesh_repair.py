@@ -58,7 +58,8 @@ from pverosion.kernels.mesh.degenerate import remove_degenerate_faces
 from pverosion.kernels.mesh.geometry import average_edge_length
 from pverosion.kernels.mesh.orientation import orient_faces
 from pverosion.kernels.mesh.topology import _incidence, boundary_edges, edge_topology, halfedge_twins
-from pverosion.kernels.spatial.mesh_query import bucket_boxes, ray_winding, ray_winding_without
+from pverosion.kernels.spatial.grid import bucket_boxes
+from pverosion.kernels.spatial.mesh_query import ray_winding, ray_winding_without
 from pverosion.kernels.tolerances import REPAIR_TOLERANCE
 from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh
 

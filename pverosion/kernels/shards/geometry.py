@@ -38,6 +38,7 @@ from pverosion.kernels.shards.graph import (
     _bounding_planes,
     _clip_polygon,
     _face_section,
+    _may_meet,
     _plane,
 )
 from pverosion.kernels.shards.voronoi import cell_polygons, seed_grid
@@ -480,34 +481,16 @@ def _meeting(tris, verts, count, nf, planes, offsets, points, faces, normals, ma
     """The triangles of ``tris`` that may meet the convex cell.
 
     Left out: triangles with all vertices outside one cell plane, and those with all cell vertices on one side of
-    their plane (both by more than ``margin``).
+    their plane (both by more than ``margin``; :func:`~pverosion.kernels.shards.graph._may_meet`).
     """
     kept = 0
     out = np.empty(tris.size, np.int64)
+    everywhere_lo = np.full(3, -np.inf)
+    everywhere_hi = np.full(3, np.inf)
     for q in range(tris.size):
         t = tris[q]
-        a, b, c = faces[t, 0], faces[t, 1], faces[t, 2]
-        meets = True
-        for g in range(nf):
-            nx, ny, nz, d = planes[g, 0], planes[g, 1], planes[g, 2], offsets[g] + margin
-            if (nx * points[a, 0] + ny * points[a, 1] + nz * points[a, 2] > d
-                    and nx * points[b, 0] + ny * points[b, 1] + nz * points[b, 2] > d
-                    and nx * points[c, 0] + ny * points[c, 1] + nz * points[c, 2] > d):
-                meets = False
-                break
-        if meets:
-            above = False
-            below = False
-            nx, ny, nz = normals[t, 0], normals[t, 1], normals[t, 2]
-            for f in range(nf):
-                for m in range(count[f]):
-                    s = (nx * (verts[f, m, 0] - points[a, 0]) + ny * (verts[f, m, 1] - points[a, 1])
-                         + nz * (verts[f, m, 2] - points[a, 2]))
-                    above = above or s >= -margin
-                    below = below or s <= margin
-                if above and below:
-                    break
-            meets = above and below
+        meets = _may_meet(t, verts, count, nf, planes, offsets, everywhere_lo, everywhere_hi, points, faces, normals,
+                          margin)
         if meets:
             out[kept] = t
             kept += 1

@@ -45,9 +45,9 @@ from scipy.sparse.csgraph import connected_components
 
 from pverosion.kernels.mesh.topology import halfedge_twins
 from pverosion.kernels.shards.voronoi import MAX_FACE_VERTICES, MAX_FACES, cell_polygons, seed_grid
+from pverosion.kernels.spatial.grid import box_items
 from pverosion.kernels.spatial.mesh_query import (
     _needle,
-    box_items,
     overlap_grid,
     point_inside,
     segment_crossings,

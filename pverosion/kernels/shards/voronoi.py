@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from pverosion.kernels.spatial.grid import bucket_points, grid_over
+
 __all__ = ["MAX_FACES", "MAX_FACE_VERTICES", "box_cell", "cell_polygons", "seed_grid"]
 
 MAX_FACES = 128
@@ -199,11 +201,8 @@ def seed_grid(seeds: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.nda
     """
     extent = hi - lo
     size = float((np.prod(extent) / max(len(seeds), 1)) ** (1.0 / 3.0))
-    dims = np.maximum(np.ceil(extent / size).astype(np.int64), 1)
-    idx = np.minimum(((seeds - lo) / size).astype(np.int64), dims - 1)
-    flat = idx[:, 0] + dims[0] * (idx[:, 1] + dims[1] * idx[:, 2])
-    order = np.argsort(flat, kind="stable").astype(np.int64)
-    start = np.searchsorted(flat[order], np.arange(int(np.prod(dims)) + 1)).astype(np.int64)
+    dims = grid_over(lo, hi, size)
+    start, order = bucket_points(np.ascontiguousarray(seeds, dtype=np.float64), np.asarray(lo, np.float64), size, dims)
     return start, order, dims, size
 
 

@@ -17,8 +17,9 @@ import numpy as np
 from numba import njit
 
 from pverosion.kernels.exact.predicates import orient2d
+from pverosion.kernels.spatial.grid import box_items, bucket_boxes
 
-__all__ = ["TriangleIndex", "box_items", "box_triangles", "bucket_boxes", "overlap_grid", "point_inside", "ray_winding",
+__all__ = ["TriangleIndex", "box_triangles", "overlap_grid", "point_inside", "ray_winding",
            "ray_winding_without", "segment_crossings", "unit_normals"]
 
 
@@ -82,29 +83,6 @@ def unit_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(normals, axis=1, keepdims=True)
     return np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
-
-
-@njit(cache=True)
-def bucket_boxes(tlo, thi, dims):
-    """CSR (offsets, items) of the items whose cell boxes ``tlo``..``thi`` (N, 3) meet each cell of a grid of
-    ``dims`` cells (x fastest), items in index order within a cell."""
-    counts = np.zeros(dims[0] * dims[1] * dims[2] + 1, np.int64)
-    for t in range(tlo.shape[0]):
-        for k in range(tlo[t, 2], thi[t, 2] + 1):
-            for j in range(tlo[t, 1], thi[t, 1] + 1):
-                for i in range(tlo[t, 0], thi[t, 0] + 1):
-                    counts[1 + i + dims[0] * (j + dims[1] * k)] += 1
-    start = np.cumsum(counts)
-    fill = start[:-1].copy()
-    items = np.empty(start[-1], np.int64)
-    for t in range(tlo.shape[0]):
-        for k in range(tlo[t, 2], thi[t, 2] + 1):
-            for j in range(tlo[t, 1], thi[t, 1] + 1):
-                for i in range(tlo[t, 0], thi[t, 0] + 1):
-                    b = i + dims[0] * (j + dims[1] * k)
-                    items[fill[b]] = t
-                    fill[b] += 1
-    return start, items
 
 
 @njit(cache=True, inline="always")
@@ -307,39 +285,6 @@ def ray_winding_without(p, points, faces, lo, size, dims, start2, items2, source
         if not skipped:
             total += _ray_crossing(p, points, faces, t)
     return total
-
-
-@njit(cache=True)
-def box_items(lo_box, hi_box, lo, size, dims, start, items, clamp):
-    """Items (unsorted, repeated where they fill several cells) in the cells of a :func:`bucket_boxes` grid that
-    the box [lo_box, hi_box] meets; the grid starts at ``lo`` with cells of edge ``size``.
-
-    With ``clamp``, a box beyond the grid takes the cells at its edge (the grid's last cells hold what lies
-    beyond it too); without, it meets no cell.
-    """
-    top = 0 if clamp else -1
-    i0 = min(max(int((lo_box[0] - lo[0]) / size), 0), dims[0] - 1 if clamp else dims[0])
-    j0 = min(max(int((lo_box[1] - lo[1]) / size), 0), dims[1] - 1 if clamp else dims[1])
-    k0 = min(max(int((lo_box[2] - lo[2]) / size), 0), dims[2] - 1 if clamp else dims[2])
-    i1 = min(max(int((hi_box[0] - lo[0]) / size), top), dims[0] - 1)
-    j1 = min(max(int((hi_box[1] - lo[1]) / size), top), dims[1] - 1)
-    k1 = min(max(int((hi_box[2] - lo[2]) / size), top), dims[2] - 1)
-    n = 0
-    for k in range(k0, k1 + 1):
-        for j in range(j0, j1 + 1):
-            for i in range(i0, i1 + 1):
-                b = i + dims[0] * (j + dims[1] * k)
-                n += start[b + 1] - start[b]
-    found = np.empty(n, np.int64)
-    n = 0
-    for k in range(k0, k1 + 1):
-        for j in range(j0, j1 + 1):
-            for i in range(i0, i1 + 1):
-                b = i + dims[0] * (j + dims[1] * k)
-                for q in range(start[b], start[b + 1]):
-                    found[n] = items[q]
-                    n += 1
-    return found
 
 
 @njit(cache=True)
