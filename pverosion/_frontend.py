@@ -27,8 +27,8 @@ from vtkmodules.vtkCommonDataModel import vtkImageData, vtkPolyData
 from pverosion.filters.base import ErosionFilter, Param
 from pverosion.kernels.validation import InvalidMeshError
 
-__all__ = ["PROGRESS_BAR_DOC", "StageFunction", "accessor_method", "apply_filter", "renamed", "run_filter",
-           "stage_function"]
+__all__ = ["PROGRESS_BAR_DOC", "StageFunction", "accessor_method", "apply_filter", "param_entry", "renamed",
+           "run_filter", "stage_function"]
 
 PROGRESS_BAR_DOC = "Show a progress bar (tqdm) of the run."
 

@@ -18,7 +18,7 @@ import pytest
 import pverosion
 from pverosion import api
 from pverosion._accessor import ErosionAccessor
-from pverosion._frontend import StageFunction
+from pverosion._frontend import StageFunction, param_entry
 from pverosion._stages import STAGE_INDEX, load_stage
 from pverosion.batch.scenario import STAGES, _stage_options
 from pverosion.cli import build_parser
@@ -60,6 +60,8 @@ def test_function_takes_every_option_with_its_default(stage):
         if options[p.name].default is not EMPTY:  # a required positional has no default
             assert _same(options[p.name].default, p.python_default), (stage.command, p.name)
             p.validate(options[p.name].default)  # the Python default is a valid value of the option
+    inputs = [name for name, q in parameters.items() if q.kind is not KEYWORD and name not in options]
+    assert len(inputs) == info.inputs, (stage.function, inputs)  # the datasets (or field) come first
     extra = {name for name, q in parameters.items() if q.kind is KEYWORD} - expected - {"progress_bar"}
     assert extra <= set(info.python_only), (stage.command, extra)
     names = list(parameters)
@@ -69,6 +71,9 @@ def test_function_takes_every_option_with_its_default(stage):
     assert "{options}" not in doc
     for name in (*options, *info.python_only):
         assert f"\n{name} : " in doc, (stage.function, name)  # numpydoc entry generated for every option
+    for p in cls.PARAMS:  # an option's description and default are the filter's, written once
+        if p.name in options and p.name not in info.python_only:
+            assert param_entry(p, required=options[p.name].default is EMPTY) in doc, (stage.function, p.name)
 
 
 @pytest.mark.parametrize("stage", [s for s in STAGE_INDEX if s.accessor], ids=lambda s: s.command)
