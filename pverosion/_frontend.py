@@ -65,6 +65,7 @@ def _default_text(p: Param) -> str:
 
 
 def _entry(name: str, kind: str, doc: str) -> str:
+    doc = doc.replace("|", "\\|")  # |H| and |u| are absolute values, not reST substitutions
     body = textwrap.fill(doc, width=100, initial_indent="    ", subsequent_indent="    ")
     return f"{name} : {kind}\n{body}"
 
