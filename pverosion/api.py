@@ -151,6 +151,7 @@ def materials_from_volume(
     *,
     array: str | None = None,
     method: str = "complete",
+    surface: str | None = None,
     seed: int = 0,
     hardness=None,
     gradual_scale: float = 0.0,
@@ -167,9 +168,14 @@ def materials_from_volume(
         Point array of an image volume.
     method : {"complete", "simplified", "fitted"}, default: "complete"
         C-BSP (exact partition by clipping), S-BSP (faster, coarser) or a
-        tree fitted to the voxels (exact at voxel centres, far smaller).
+        tree fitted to the voxels (exact at voxel centres, the smallest).
+    surface : {"voxels", "isosurface"}, optional
+        What C-BSP inserts: the voxels' boundary faces, coplanar ones merged
+        (default; exact at voxel centres, smaller than the volume) or the
+        marching-cubes isosurfaces as in the thesis (about 100x the volume).
+        S-BSP inserts isosurfaces only.
     seed : int, default: 0
-        Face insertion order; the same seed gives the same tree.
+        Face insertion order of isosurface trees; the same seed gives the same tree.
     hardness : sequence of float, optional
         Hardness of materials 0..m; default 1, 2, ..., m + 1.
     gradual_scale : float, default: 0
@@ -198,8 +204,8 @@ def materials_from_volume(
         origin, spacing = volume.origin, volume.spacing
     else:
         values, origin, spacing = np.asarray(volume), (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)
-    return bsp_from_volume(values, thresholds, origin=origin, spacing=spacing, method=method, seed=seed,
-                           hardness=hardness, gradual=Gradual(gradual_scale) if gradual_scale > 0 else None)
+    return bsp_from_volume(values, thresholds, origin=origin, spacing=spacing, method=method, surface=surface,
+                           seed=seed, hardness=hardness, gradual=Gradual(gradual_scale) if gradual_scale > 0 else None)
 
 
 def sample_materials(
