@@ -48,8 +48,12 @@ class MaterialsFromVolume(ErosionFilter):
     """Build a BSP material field from volume data (thesis §11.5) and sample it back.
 
     The input image's scalar array is thresholded into materials (material k
-    where the value exceeds k thresholds); the isosurfaces become a C-BSP or
-    S-BSP tree, which is sampled at the image's points into ``material_id``
+    where the value exceeds k thresholds); a C-BSP of the voxels' boundary
+    faces (coplanar faces merged; exact at the voxels, smaller than the volume),
+    an S-BSP of the isosurfaces or a fitted tree is built (see
+    :func:`~pverosion.kernels.materials.field.bsp_from_volume`; the thesis'
+    isosurface C-BSP is ``bsp_from_volume(..., surface="isosurface")``) and
+    sampled at the image's points into ``material_id``
     and ``hardness``. The tree can be saved to JSON (``tree_file``). Field
     data: ``bsp_method``, ``extracted_faces``, ``inserted_faces``,
     ``bsp_nodes``, ``bsp_height``, ``bsp_bytes``, ``volume_bytes``,
@@ -64,10 +68,11 @@ class MaterialsFromVolume(ErosionFilter):
     PARAMS = (
         Param("thresholds", "", "Material boundaries, comma separated (required), e.g. 40,100,160.", numbers=0),
         Param("array", "", "Input point array to threshold (default: the active scalars)."),
-        Param("method", "complete", "complete (C-BSP, clip straddling faces), simplified (S-BSP, face centre) or "
-              "fitted (planes chosen to fit the voxels' materials: exact at voxel centres, far smaller).",
+        Param("method", "complete", "complete (C-BSP of the voxels' boundary faces, coplanar faces merged, straddling "
+              "faces clipped: exact at voxel centres, smaller than the volume), simplified (S-BSP of the isosurfaces, "
+              "face centre) or fitted (planes chosen to fit the voxels' materials: exact, the smallest).",
               choices=BSP_METHODS),
-        Param("seed", 0, "Seed of the face insertion order.", minimum=0),
+        Param("seed", 0, "Seed of the face insertion order (simplified).", minimum=0),
         Param("hardness", "", "Hardness per material, comma separated (default 1, 2, ..., m+1).", numbers=0),
         Param("gradual_scale", 0.0, "Softer away from the boundaries over this distance (0: off).", minimum=0.0),
         Param("tree_file", "", "Also save the tree to this JSON file.", path="output"),

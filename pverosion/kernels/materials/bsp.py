@@ -15,7 +15,15 @@ of its centre.
 
 Inserting every marching-cubes face makes trees far larger than the volume
 (on smooth data nearly every face is inserted, and a face only approximates
-where the voxel centres change material). :func:`build_from_labels`
+where the voxel centres change material). :func:`build_from_voxel_faces`
+grows a C-BSP from the voxels' own boundary surface instead
+(:func:`voxel_faces`: the squares between voxels of different labels, merged
+into coplanar rectangles): each cell is split by the plane of some of its
+faces, chosen for the most face area at the least clipping, all the cell's
+faces in that plane are inserted at once, and straddling faces are clipped.
+Its planes lie half-way between voxels, so it is held in the compact lattice
+layout below: 0.82x the bytes of the MR head, every voxel centre right.
+:func:`build_from_labels`
 (``method="fitted"``) grows the tree from the labelled voxels themselves
 instead. Its candidate splitters stand for runs of nearly coplanar boundary
 faces: the planes half-way between lattice points, ``u . i = s + 1/2`` for
@@ -54,8 +62,21 @@ from pverosion.kernels.materials.surfaces import (
     surface_value,
 )
 
-__all__ = ["AXES", "BSP_METHODS", "BSP_SURFACES", "BSPNode", "BSPStats", "BSPTree", "LATTICE_DIRECTIONS", "LEAF",
-           "LatticeBSPTree", "build_from_labels", "build_from_triangles", "build_from_voxel_faces", "voxel_faces"]
+__all__ = [
+    "AXES",
+    "BSP_METHODS",
+    "BSP_SURFACES",
+    "LATTICE_DIRECTIONS",
+    "LEAF",
+    "BSPNode",
+    "BSPStats",
+    "BSPTree",
+    "LatticeBSPTree",
+    "build_from_labels",
+    "build_from_triangles",
+    "build_from_voxel_faces",
+    "voxel_faces",
+]
 
 BSP_METHODS = ("complete", "simplified", "fitted")
 """Accepted values of the ``method`` option of the automated build."""
