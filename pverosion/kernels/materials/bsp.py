@@ -22,7 +22,7 @@ into coplanar rectangles): each cell is split by the plane of some of its
 faces, chosen for the most face area at the least clipping, all the cell's
 faces in that plane are inserted at once, and straddling faces are clipped.
 Its planes lie half-way between voxels, so it is held in the compact lattice
-layout below: 0.82x the bytes of the MR head, every voxel centre right.
+layout below: 0.77x the bytes of the MR head, every voxel centre right.
 :func:`build_from_labels`
 (``method="fitted"``) grows the tree from the labelled voxels themselves
 instead. Its candidate splitters stand for runs of nearly coplanar boundary
@@ -1084,7 +1084,7 @@ def _cut(lo, hi, source, k, a, c, n_pieces):
 @njit(cache=True)
 def _autopartition(lo, hi, plane, below, above, plane_axis, plane_pos, n_materials, n_candidates,
                    split_weight):
-    """Grow a C-BSP over axis-aligned squares: each cell is split by the plane of some of its pieces (chosen by
+    """Grow a C-BSP over axis-aligned rectangles: each cell is split by the plane of some of its pieces (chosen by
     :func:`_best_plane`), which are consumed; straddling pieces are cut and sent down both sides; a cell left
     without pieces becomes a leaf of the material its parent's coplanar pieces give that side.
 
@@ -1135,7 +1135,7 @@ def _autopartition(lo, hi, plane, below, above, plane_axis, plane_pos, n_materia
 
 
 def build_from_voxel_faces(labels: np.ndarray, *, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0),
-                           candidates: int = 64, split_weight: float = 2.0) -> tuple[LatticeBSPTree, int, int]:
+                           candidates: int = 64, split_weight: float = 4.0) -> tuple[LatticeBSPTree, int, int]:
     """C-BSP of the boundary surface of labelled voxels, coplanar faces merged, splitters chosen by cost.
 
     The surface is :func:`voxel_faces` (the squares between face-adjacent voxels of
