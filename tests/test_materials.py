@@ -405,6 +405,15 @@ def test_voxel_faces_merge_into_rectangles_covering_exactly_the_boundary():
         assert padded[tuple(lower)] == below[f] and padded[tuple(corner)] == above[f]
 
 
+def test_voxel_c_bsp_of_one_material_is_one_leaf_or_its_box():
+    tree, faces, inserted = build_from_voxel_faces(np.zeros((3, 4, 2), int))
+    assert (faces, inserted, tree.n_nodes) == (0, 0, 1) and tree.locate(np.zeros((1, 3)))[0][0] == 0
+    tree, faces, inserted = build_from_voxel_faces(np.full((3, 4, 2), 2))
+    assert faces == inserted == 6  # the six sides of the box, each one rectangle
+    points = np.array([[1.0, 1.5, 0.5], [-0.6, 1.0, 0.0], [1.0, 3.6, 1.0], [1.0, 1.0, -0.51]])
+    assert tree.locate(points)[0].tolist() == [2, 0, 0, 0]
+
+
 @pytest.mark.parametrize("candidates, split_weight", [(1, 0.0), (64, 4.0)])
 def test_voxel_c_bsp_gives_every_point_its_voxel_label(candidates, split_weight):
     # the C-BSP of the voxel boundary faces partitions space along the voxel cells: any point, not only the

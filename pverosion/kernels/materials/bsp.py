@@ -997,7 +997,8 @@ def voxel_faces(labels: np.ndarray) -> tuple[np.ndarray, ...]:
     """
     padded = np.pad(np.asarray(labels, dtype=np.int64), 1)
     n_materials = int(padded.max()) + 1
-    parts = []
+    empty = np.zeros(0, np.int64)
+    parts = [(empty, empty.reshape(0, 3), empty.reshape(0, 3), empty, empty)]  # a volume of material 0: no faces
     for ax in range(3):
         n = padded.shape[ax] - 1
         a, b = np.take(padded, np.arange(n), axis=ax), np.take(padded, np.arange(1, n + 1), axis=ax)
@@ -1126,6 +1127,10 @@ def _autopartition(lo, hi, plane, below, above, plane_axis, plane_pos, n_materia
                 negative.append(k)
             else:
                 positive.append(k)
+        if n_nodes + 2 > len(leaf):  # clipped pieces can outnumber the faces
+            node_plane = np.concatenate((node_plane, np.full(len(leaf), -1, np.int64)))
+            children = np.concatenate((children, np.full((len(leaf), 2), -1, np.int64)))
+            leaf = np.concatenate((leaf, np.full(len(leaf), -1, np.int64)))
         node_plane[node] = p
         children[node, 0], children[node, 1] = n_nodes, n_nodes + 1
         work.append((np.array(positive, np.int64), n_nodes + 1, np.argmax(votes[1])))
