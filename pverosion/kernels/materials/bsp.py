@@ -941,7 +941,7 @@ AXES = np.eye(3, dtype=np.int8)
 
 @njit(cache=True)
 def _greedy_rectangles(code):
-    """Cover the non-zero cells of a 2-D array by rectangles of equal code, greedily (row-major, widest first).
+    """Cover the non-zero cells of a 2-D array by rectangles of equal code, greedily (row-major, grown along v, then u).
 
     Returns rows ``(u0, u1, v0, v1, code)``: cells ``u0 <= u < u1``, ``v0 <= v < v1``.
     """
