@@ -1,13 +1,15 @@
 """Material fields on the MR head volume: C-BSP, S-BSP and fitted build, size, agreement, location speed.
 
 Prints one JSON object. Thresholds 40 / 100 / 160 split the 8-bit MR head into four materials
-(air and noise | soft tissue | brain | the brightest tissue). Per method (C-BSP and S-BSP insert
-the marching-cubes faces, the fitted tree is grown from the voxels' materials): build time (median of
---repeat builds; with --repeat above 1 a warm-up build keeps numba compilation out), extracted and
-inserted faces, node count, height, and the tree's size next to the volume's bytes:
+(air and noise | soft tissue | brain | the brightest tissue). Per tree (``c_bsp``: C-BSP of the voxels'
+boundary faces, coplanar ones merged, the default of ``method="complete"``; ``c_bsp_isosurface`` and
+``s_bsp``: C-BSP and S-BSP inserting the marching-cubes faces as in the thesis; ``fitted``: grown from
+the voxels' materials): build time (median of --repeat builds; with --repeat above 1 a warm-up build
+keeps numba compilation out), extracted and inserted faces, node count, height, and the tree's size
+next to the volume's bytes:
 
-- ``tree_bytes``: the build statistics' count (24 B/node for C-BSP and S-BSP as in the thesis; the
-  real bytes of the arrays of the fitted tree's compact layout),
+- ``tree_bytes``: the build statistics' count (24 B/node for the isosurface trees as in the thesis;
+  the real bytes of the arrays of the compact layout of the voxel C-BSP and of the fitted tree),
 - ``in_memory_bytes``: the bytes of the arrays that define the tree as the package holds it,
 - ``saved_bytes``: the size of the tree's JSON file,
 
@@ -65,9 +67,11 @@ def main() -> None:
 
     report = {"benchmark": "materials", "volume": args.volume.name, "dimensions": [nx, ny, nz],
               "thresholds": list(THRESHOLDS), "repeat": args.repeat}
-    for method in ("complete", "simplified", "fitted"):
-        def build(method=method):
-            return pverosion.materials_from_volume(head, THRESHOLDS, method=method, seed=args.seed)
+    trees = {"c_bsp": ("complete", "voxels"), "c_bsp_isosurface": ("complete", "isosurface"),
+             "s_bsp": ("simplified", "isosurface"), "fitted": ("fitted", None)}
+    for key, (method, surface) in trees.items():
+        def build(method=method, surface=surface):
+            return pverosion.materials_from_volume(head, THRESHOLDS, method=method, surface=surface, seed=args.seed)
 
         if args.repeat > 1:
             build()  # warm-up
@@ -78,7 +82,7 @@ def main() -> None:
         stats = field.stats
         with tempfile.TemporaryDirectory() as tmp:
             saved = field.tree.to_json(Path(tmp) / "tree.json").stat().st_size
-        report[{"complete": "c_bsp", "simplified": "s_bsp", "fitted": "fitted"}[method]] = {
+        report[key] = {
             "build_ms": round(1e3 * build_s, 1),
             "extracted_faces": stats.extracted_faces,
             "inserted_faces": stats.inserted_faces,
@@ -99,4 +103,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    run(main, timings=("c_bsp.build_ms", "c_bsp.classify_1m_points_s", "s_bsp.build_ms"))
+    run(main, timings=("c_bsp.build_ms", "c_bsp.classify_1m_points_s", "c_bsp_isosurface.build_ms", "s_bsp.build_ms"))

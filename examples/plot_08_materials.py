@@ -4,8 +4,9 @@ Materials from a CT volume and its slices
 
 A material field answers "which material, how hard" at any point; every erosion stage divides
 its speed by the hardness there. :func:`pverosion.materials_from_volume` builds one from a scan:
-material k is where the value exceeds k of the thresholds, and the isosurfaces of the thresholds
-are inserted into a BSP tree. The MR head volume is used when ``../shared/data/HeadMRVolume.mhd``
+material k is where the value exceeds k of the thresholds, and the boundary faces of the
+thresholded voxels (coplanar faces merged) are inserted into a C-BSP tree, smaller than the volume
+and exact at its voxels. The MR head volume is used when ``../shared/data/HeadMRVolume.mhd``
 is present, nested procedural blobs otherwise.
 """
 
@@ -28,7 +29,8 @@ else:
     volume["value"] = blobs.ravel(order="F")
     thresholds = [0.6, 0.9, 1.2]
 field = pverosion.materials_from_volume(volume, thresholds, method="complete", seed=0)
-print(f"{field.stats.inserted_faces} faces inserted: {field.stats.nodes} nodes, height {field.stats.height}")
+print(f"{field.stats.inserted_faces} coplanar face groups inserted: {field.stats.nodes} nodes, "
+      f"height {field.stats.height}, {field.stats.tree_bytes} bytes (volume: {field.stats.volume_bytes})")
 
 # %%
 # Sample the field on a regular grid over the volume and show its three middle slices.

@@ -4,7 +4,7 @@ Writes into <out>:
   slices_sphere.png      a sphere splitting space, constant and gradual hardness (Fig. 11.11)
   slices_surfaces.png    ellipsoid, paraboloid, hyperboloid, cylinder, sin, sinc with gradual hardness (Fig. 11.12)
   slices_tree.png        a BSP tree of three implicit surfaces (Fig. 11.13)
-  slices_head_cbsp.png / slices_head_sbsp.png   BSP trees built from the MR head volume (Fig. 11.18),
+  slices_head_cbsp.png / slices_head_sbsp.png   isosurface BSP trees built from the MR head volume (Fig. 11.18),
                          when ../shared/data/HeadMRVolume.mhd is present (or --volume FILE)
 
     python pipelines/material_slices.py [-o figures] [--volume FILE] [--thresholds 40,100,160]
@@ -84,7 +84,7 @@ def main() -> None:
         head = read_image(args.volume)
         thresholds = [float(t) for t in args.thresholds.split(",")]
         for method in ("complete", "simplified"):
-            field = pverosion.materials_from_volume(head, thresholds, method=method, seed=0)
+            field = pverosion.materials_from_volume(head, thresholds, method=method, surface="isosurface", seed=0)
             bounds = np.asarray(head.bounds)
             image = pverosion.sample_materials(field, dimensions=(96, 124, 84), bounds=tuple(bounds))
             tag = "cbsp" if method == "complete" else "sbsp"

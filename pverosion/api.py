@@ -20,7 +20,7 @@ from vtkmodules.vtkCommonDataModel import vtkPolyData
 from pverosion._frontend import apply_filter, renamed, run_filter, stage_function
 from pverosion.filters.curvature import Curvature
 from pverosion.filters.hydraulic import HydraulicErosion
-from pverosion.filters.materials import MaterialSampler, MaterialsFromVolume
+from pverosion.filters.materials import MaterialSampler, MaterialsFromVolume, surface_option
 from pverosion.filters.repair import BooleanOperation, RepairIntersections
 from pverosion.filters.shards import FreezeThaw, ShardGraph
 from pverosion.filters.voxel import VoxelErosion
@@ -143,6 +143,7 @@ def materials_from_volume(
     *,
     array: str = "",
     method: str = "complete",
+    surface: str = "default",
     seed: int = 0,
     hardness: Sequence[float] | str | None = None,
     gradual_scale: float = 0.0,
@@ -189,8 +190,9 @@ def materials_from_volume(
         origin, spacing = volume.origin, volume.spacing
     else:
         values, origin, spacing = np.asarray(volume), (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)
-    return bsp_from_volume(values, thresholds, origin=origin, spacing=spacing, method=method, seed=seed,
-                           hardness=hardness, gradual=Gradual(gradual_scale) if gradual_scale > 0 else None)
+    return bsp_from_volume(values, thresholds, origin=origin, spacing=spacing, method=method,
+                           surface=surface_option(surface), seed=seed, hardness=hardness,
+                           gradual=Gradual(gradual_scale) if gradual_scale > 0 else None)
 
 
 _GRID = {"dimensions": ("tuple of int, default: (64, 64, 64)", "Grid points along x, y, z."),

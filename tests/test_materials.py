@@ -10,6 +10,8 @@ from pverosion.kernels.materials.bsp import (
     LatticeBSPTree,
     build_from_labels,
     build_from_triangles,
+    build_from_voxel_faces,
+    voxel_faces,
 )
 from pverosion.kernels.materials.field import (
     BSPMaterials,
@@ -191,24 +193,28 @@ def test_fitted_tree_is_exact_and_smaller_than_the_volume_on_smooth_data():
     assert fitted.stats.tree_bytes < 0.25 * values.nbytes
     assert fitted.stats.tree_bytes == fitted.tree.nbytes
     assert fitted.stats.inserted_faces == (fitted.tree.leaf < 0).sum() and fitted.stats.extracted_faces == 0
-    complete = bsp_from_volume(values, thresholds, spacing=spacing, method="complete")
+    complete = bsp_from_volume(values, thresholds, spacing=spacing, method="complete", surface="isosurface")
     assert fitted.stats.nodes * 10 < complete.stats.nodes
     agreement = np.mean(complete.sample(_centres(values.shape, spacing=spacing)).material_id == reference)
     assert agreement < 1.0  # the inserted isosurfaces miss some voxel centres the fitted tree gets right
+    voxels = bsp_from_volume(values, thresholds, spacing=spacing, method="complete")  # C-BSP of the voxel faces
+    assert np.array_equal(voxels.sample(_centres(values.shape, spacing=spacing)).material_id, reference)
+    assert voxels.stats.tree_bytes == voxels.tree.nbytes <= 0.5 * values.nbytes
+    assert voxels.stats.nodes * 5 < complete.stats.nodes
     # the same input gives the same tree
     again = bsp_from_volume(values, thresholds, spacing=spacing, method="fitted")
     for name in ("direction", "value", "right"):
         assert np.array_equal(getattr(again.tree, name), getattr(fitted.tree, name))
 
 
-@pytest.mark.parametrize("method", ["fitted", "complete"])
-def test_volume_trees_do_not_depend_on_units(method):
+@pytest.mark.parametrize("method, surface", [("fitted", None), ("complete", None), ("complete", "isosurface")])
+def test_volume_trees_do_not_depend_on_units(method, surface):
     x, y, z = np.meshgrid(*[np.linspace(-1, 1, n) for n in (20, 18, 16)], indexing="ij")
     values = (200 * np.exp(-(x**2 + 2 * y**2 + z**2))).astype(np.uint8)
     trees = [bsp_from_volume(values, (80, 150), origin=np.array([1.0, -2.0, 0.5]) * scale,
-                             spacing=np.array([0.5, 0.5, 0.8]) * scale, method=method).tree
+                             spacing=np.array([0.5, 0.5, 0.8]) * scale, method=method, surface=surface).tree
              for scale in (1e-3, 1.0, 1e3)]
-    if method == "fitted":  # the same lattice nodes; their planes in world units scale with the volume
+    if isinstance(trees[1], LatticeBSPTree):  # the same lattice nodes; their planes in world units scale
         for tree in trees:
             for name in ("direction", "value", "right"):
                 assert np.array_equal(getattr(tree, name), getattr(trees[1], name))
@@ -338,19 +344,29 @@ def test_head_volume_bsp_agrees_with_thresholded_voxels(head):
     centres = np.stack(np.meshgrid(*[np.arange(n) for n in head.shape], indexing="ij"), -1).reshape(-1, 3) * 4.0
     agreement = {}
     for method in ("complete", "simplified"):
-        field = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method=method, seed=3)
+        field = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method=method, surface="isosurface", seed=3)
         agreement[method] = np.mean(field.sample(centres).material_id == reference)
         assert field.stats.extracted_faces >= field.stats.inserted_faces > 0
         assert field.stats.tree_bytes == 24 * field.stats.nodes
     assert agreement["complete"] >= 0.99
     assert agreement["simplified"] <= agreement["complete"]
-    again = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="complete", seed=3)
-    first = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="complete", seed=3)
+    again = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="complete", surface="isosurface", seed=3)
+    first = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="complete", surface="isosurface", seed=3)
     assert np.array_equal(again.tree.params, first.tree.params) and np.array_equal(again.tree.leaf, first.tree.leaf)
     fitted = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="fitted")
     assert np.array_equal(fitted.sample(centres).material_id, reference)
-    complete = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="complete", seed=3)
-    assert fitted.stats.tree_bytes * 100 < complete.stats.tree_bytes
+    assert fitted.stats.tree_bytes * 100 < first.stats.tree_bytes
+
+
+def test_head_volume_c_bsp_of_voxel_faces_is_smaller_than_the_volume(head, tmp_path):
+    thresholds = (40, 100, 160)
+    reference = (head[..., None] > np.array(thresholds)).sum(axis=-1).ravel()
+    field = bsp_from_volume(head, thresholds, spacing=(4, 4, 4), method="complete")
+    assert np.mean(field.sample(_centres(head.shape, spacing=(4, 4, 4))).material_id == reference) >= 0.999
+    assert field.stats.tree_bytes == field.tree.nbytes <= head.nbytes
+    assert field.tree.to_json(tmp_path / "head.json").stat().st_size <= head.nbytes
+    assert field.stats.extracted_faces >= field.stats.inserted_faces > 0
+    _assert_compact_tree_locates_like_planes(field.tree, head.shape, seed=5)
 
 
 def test_head_volume_fitted_tree_is_smaller_than_the_volume_in_memory_and_on_disk(head, tmp_path):
@@ -364,6 +380,88 @@ def test_head_volume_fitted_tree_is_smaller_than_the_volume_in_memory_and_on_dis
     _assert_compact_tree_locates_like_planes(tree, head.shape, seed=4)
 
 
+def _nearest_voxel_label(labels, points):
+    """Label of the voxel whose cell holds each point (index space), 0 outside the volume."""
+    index = np.rint(points).astype(int)
+    inside = np.all((index >= 0) & (index < np.array(labels.shape)), axis=1)
+    out = np.zeros(len(points), np.int64)
+    out[inside] = labels[tuple(index[inside].T)]
+    return out
+
+
+def test_voxel_faces_merge_into_rectangles_covering_exactly_the_boundary():
+    rng = np.random.default_rng(7)
+    labels = (rng.random((9, 8, 7)) < 0.3).astype(int) + (rng.random((9, 8, 7)) < 0.2)
+    axis, lo, hi, below, above = voxel_faces(labels)
+    padded = np.pad(labels, 1)
+    unit = sum(np.count_nonzero(np.diff(padded, axis=ax)) for ax in range(3))
+    area = np.prod(np.maximum(hi - lo, 1), axis=1) // 4  # doubled coordinates: 4 per voxel face
+    assert area.sum() == unit and len(axis) < unit  # every face once, in fewer rectangles
+    assert np.all(below != above) and np.all(lo[np.arange(len(axis)), axis] % 2 == 1)
+    for f in rng.choice(len(axis), 50, replace=False):  # the materials on either side are the voxels'
+        corner = (lo[f] + 1) // 2 + 1  # padded index of the first voxel above the rectangle
+        lower = corner.copy()
+        lower[axis[f]] -= 1
+        assert padded[tuple(lower)] == below[f] and padded[tuple(corner)] == above[f]
+
+
+def test_voxel_c_bsp_of_one_material_is_one_leaf_or_its_box():
+    tree, faces, inserted = build_from_voxel_faces(np.zeros((3, 4, 2), int))
+    assert (faces, inserted, tree.n_nodes) == (0, 0, 1) and tree.locate(np.zeros((1, 3)))[0][0] == 0
+    tree, faces, inserted = build_from_voxel_faces(np.full((3, 4, 2), 2))
+    assert faces == inserted == 6  # the six sides of the box, each one rectangle
+    points = np.array([[1.0, 1.5, 0.5], [-0.6, 1.0, 0.0], [1.0, 3.6, 1.0], [1.0, 1.0, -0.51]])
+    assert tree.locate(points)[0].tolist() == [2, 0, 0, 0]
+
+
+@pytest.mark.parametrize("candidates, split_weight", [(1, 0.0), (64, 4.0)])
+def test_voxel_c_bsp_gives_every_point_its_voxel_label(candidates, split_weight):
+    # the C-BSP of the voxel boundary faces partitions space along the voxel cells: any point, not only the
+    # centres, gets the label of the voxel it lies in (0 outside the volume)
+    rng = np.random.default_rng(3)
+    labels = np.zeros((14, 12, 10), int)
+    labels[rng.random(labels.shape) < 0.25] = 1
+    labels[rng.random(labels.shape) < 0.1] = 2
+    tree, faces, inserted = build_from_voxel_faces(labels, candidates=candidates, split_weight=split_weight)
+    assert faces >= inserted == (tree.leaf < 0).sum() > 0
+    points = rng.uniform(-2.0, np.array(labels.shape) + 1.0, (50_000, 3))
+    points = points[np.all(np.abs(np.abs(points - np.rint(points)) - 0.5) > 1e-3, axis=1)]  # off the cell walls
+    assert np.array_equal(tree.locate(points)[0], _nearest_voxel_label(labels, points))
+
+
+def test_voxel_c_bsp_of_a_sphere_and_a_box_classifies_analytic_points():
+    shape, spacing, origin = (30, 26, 22), np.array([0.1, 0.1, 0.125]), np.array([-1.5, -1.3, -1.4])
+    centres = _centres(shape, origin, spacing)
+    ball = np.linalg.norm(centres, axis=1) < 1.0
+    box = np.all(np.abs(centres - [0.4, 0.0, 0.0]) < [0.3, 0.45, 0.6], axis=1)
+    values = (100 * ball + 100 * box).reshape(shape).astype(np.uint8)  # 0 outside, 100 in one, 200 in both
+    field = bsp_from_volume(values, (50, 150), origin=origin, spacing=spacing, method="complete")
+    points = np.random.default_rng(1).uniform(origin - 0.2, origin + np.array(shape) * spacing, (100_000, 3))
+    half_cell = 0.5 * np.linalg.norm(spacing)  # the voxel surface lies within half a cell of the true one
+    r = np.linalg.norm(points, axis=1)
+    far_box = np.all(np.abs(points - [0.4, 0.0, 0.0]) < np.array([0.3, 0.45, 0.6]) - half_cell, axis=1)
+    out_box = np.any(np.abs(points - [0.4, 0.0, 0.0]) > np.array([0.3, 0.45, 0.6]) + half_cell, axis=1)
+    material = field.sample(points).material_id
+    assert np.all(material[(r < 1.0 - half_cell) & far_box] == 2)
+    assert np.all(material[(r < 1.0 - half_cell) & out_box] == 1)
+    assert np.all(material[(r > 1.0 + half_cell) & out_box] == 0)
+    assert field.stats.tree_bytes <= 0.25 * values.nbytes  # smooth boundaries: a fraction of the 8-bit volume
+
+
+def test_voxel_c_bsp_does_not_depend_on_voxel_order():
+    # the same volume mirrored and with its axes swapped gives the same materials at the matching points
+    rng = np.random.default_rng(11)
+    labels = (rng.random((10, 9, 8)) < 0.3).astype(int) + (rng.random((10, 9, 8)) < 0.15)
+    tree = build_from_voxel_faces(labels)[0]
+    turned = build_from_voxel_faces(labels[::-1].transpose(2, 1, 0))[0]
+    points = rng.uniform(-0.4, 7.4, (20_000, 3))
+    moved = np.stack([points[:, 2], points[:, 1], labels.shape[0] - 1 - points[:, 0]], axis=1)
+    assert np.array_equal(tree.locate(points)[0], turned.locate(moved)[0])
+    again = build_from_voxel_faces(labels)[0]
+    for name in ("direction", "value", "right"):
+        assert np.array_equal(getattr(again, name), getattr(tree, name))
+
+
 def test_bad_input_is_named():
     with pytest.raises(ValueError, match="radius must be > 0"):
         Sphere((0, 0, 0), -1.0)
@@ -375,6 +473,14 @@ def test_bad_input_is_named():
         bsp_from_volume(np.arange(27.0).reshape(3, 3, 3), [100.0])
     with pytest.raises(ValueError, match="method must be one of"):
         bsp_from_volume(np.arange(27.0).reshape(3, 3, 3), [10.0], method="fast")
+    with pytest.raises(ValueError, match="takes surface in"):
+        bsp_from_volume(np.arange(27.0).reshape(3, 3, 3), [10.0], method="simplified", surface="voxels")
+    with pytest.raises(ValueError, match="takes surface in"):
+        bsp_from_volume(np.arange(27.0).reshape(3, 3, 3), [10.0], method="complete", surface="mesh")
+    with pytest.raises(ValueError, match="candidates must be"):
+        build_from_voxel_faces(np.ones((3, 3, 3), int), candidates=0)
+    with pytest.raises(ValueError, match="labels must be"):
+        build_from_voxel_faces(-np.ones((3, 3, 3), int))
     with pytest.raises(ValueError, match="points must have shape"):
         BSPMaterials.split(Plane(), 0, 1, [1.0, 2.0]).sample(np.zeros(3))
     with pytest.raises(TypeError, match="cannot be saved"):

@@ -6,7 +6,7 @@ import numpy as np
 from vtkmodules.util import numpy_support
 
 from pverosion.filters.base import ErosionFilter, Param, parse_numbers, set_field_value
-from pverosion.kernels.materials.bsp import BSP_METHODS, BSPTree
+from pverosion.kernels.materials.bsp import BSP_METHODS, BSP_SURFACES, BSPTree
 from pverosion.kernels.materials.field import (
     BSPMaterials,
     Gradual,
@@ -14,7 +14,16 @@ from pverosion.kernels.materials.field import (
     bsp_from_volume,
 )
 
-__all__ = ["MaterialSampler", "MaterialsFromVolume", "grid_points", "parse_numbers", "store_sample"]
+__all__ = ["SURFACE_CHOICES", "MaterialSampler", "MaterialsFromVolume", "grid_points", "parse_numbers", "store_sample",
+           "surface_option"]
+
+SURFACE_CHOICES = ("default", *BSP_SURFACES)
+"""Values of the ``surface`` option: ``"default"`` lets the method choose (C-BSP: voxels, S-BSP: isosurface)."""
+
+
+def surface_option(value: str) -> str | None:
+    """The kernel's ``surface`` argument for option value ``value`` (None for ``"default"``)."""
+    return None if value == "default" else value
 
 ASSOCIATIONS = ("point", "cell")
 
@@ -48,8 +57,12 @@ class MaterialsFromVolume(ErosionFilter):
     """Build a BSP material field from volume data (thesis §11.5) and sample it back.
 
     The input image's scalar array is thresholded into materials (material k
-    where the value exceeds k thresholds); the isosurfaces become a C-BSP or
-    S-BSP tree, which is sampled at the image's points into ``material_id``
+    where the value exceeds k thresholds); a C-BSP of the voxels' boundary
+    faces (coplanar faces merged; exact at the voxels, smaller than the volume),
+    an S-BSP of the isosurfaces or a fitted tree is built (see
+    :func:`~pverosion.kernels.materials.field.bsp_from_volume`; the thesis'
+    isosurface C-BSP is ``bsp_from_volume(..., surface="isosurface")``) and
+    sampled at the image's points into ``material_id``
     and ``hardness``. The tree can be saved to JSON (``tree_file``). Field
     data: ``bsp_method``, ``extracted_faces``, ``inserted_faces``,
     ``bsp_nodes``, ``bsp_height``, ``bsp_bytes``, ``volume_bytes``,
@@ -64,10 +77,14 @@ class MaterialsFromVolume(ErosionFilter):
     PARAMS = (
         Param("thresholds", "", "Material boundaries, comma separated (required), e.g. 40,100,160.", numbers=0),
         Param("array", "", "Input point array to threshold (default: the active scalars)."),
-        Param("method", "complete", "complete (C-BSP, clip straddling faces), simplified (S-BSP, face centre) or "
-              "fitted (planes chosen to fit the voxels' materials: exact at voxel centres, far smaller).",
+        Param("method", "complete", "complete (C-BSP of the voxels' boundary faces, coplanar faces merged, straddling "
+              "faces clipped: exact at voxel centres, smaller than the volume), simplified (S-BSP of the isosurfaces, "
+              "face centre) or fitted (planes chosen to fit the voxels' materials: exact, the smallest).",
               choices=BSP_METHODS),
-        Param("seed", 0, "Seed of the face insertion order.", minimum=0, advanced=True),
+        Param("surface", "default", "What C-BSP inserts: voxels (the voxels' boundary faces, the default) or isosurface "
+              "(marching-cubes isosurfaces as in the thesis, about 100x the volume); S-BSP takes isosurface only.",
+              choices=SURFACE_CHOICES, advanced=True),
+        Param("seed", 0, "Seed of the face insertion order (isosurface trees).", minimum=0, advanced=True),
         Param("hardness", "", "Hardness per material, comma separated (default 1, 2, ..., m+1).", numbers=0),
         Param("gradual_scale", 0.0, "Softer away from the boundaries over this distance (0: off).", minimum=0.0,
               advanced=True),
@@ -98,7 +115,8 @@ class MaterialsFromVolume(ErosionFilter):
         scale = self.get_option("gradual_scale")
         values = self._volume(inp)
         field = bsp_from_volume(values, thresholds, origin=inp.GetOrigin(), spacing=inp.GetSpacing(),
-                                method=self.get_option("method"), seed=self.get_option("seed"), hardness=hardness,
+                                method=self.get_option("method"), surface=surface_option(self.get_option("surface")),
+                                seed=self.get_option("seed"), hardness=hardness,
                                 gradual=Gradual(scale) if scale > 0 else None)
         self.UpdateProgress(0.8)
         out.ShallowCopy(inp)
