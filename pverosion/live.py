@@ -1,9 +1,11 @@
 """Live erosion: a stage steps in a background thread while a plotter shows it; picks place water or brush weathering.
 
 :func:`interactive` returns a :class:`LiveSession`. Its solver runs one
-iteration at a time in a worker thread and publishes a copy of the state
-after each; the plotter's timer (or a script calling
-:meth:`LiveSession.update_view`) shows the newest copy. Picking a point on
+iteration at a time in a worker thread; after an iteration it publishes a
+copy of the state (with vertex normals, so the view computes nothing) if
+the view has taken the previous one, and always when it stops. The
+plotter's timer (or a script calling :meth:`LiveSession.update_view`)
+moves the shown arrays to the newest copy and renders, at its own pace. Picking a point on
 the surface (right click or the ``P`` key in a window, :meth:`LiveSession.pick`
 or :meth:`LiveSession.pick_screen` in scripts) places the water source above
 it (``stage="hydraulic"``) or adds a weathering brush there
@@ -23,7 +25,7 @@ from pverosion.filters.hydraulic import particles_polydata
 from pverosion.io import write_atomic
 from pverosion.kernels.fluid.particle_fluid import Emitter, FluidParameters
 from pverosion.kernels.hydraulic.erosion import HydraulicSolver
-from pverosion.kernels.mesh.geometry import average_edge_length
+from pverosion.kernels.mesh.geometry import average_edge_length, vertex_normals
 from pverosion.kernels.validation import as_triangle_mesh
 from pverosion.kernels.weathering.model import WeatheringSolver
 from pverosion.plotting import _offscreen_pyvista, scalar_style
@@ -77,6 +79,8 @@ class LiveSession:
         Centres of the weathering brushes (weather).
     updates : int
         View updates that showed a new state.
+    shown_step : int
+        Iteration the view shows.
     """
 
     def __init__(self, mesh: pv.PolyData, *, stage: str = "hydraulic", plotter: pv.Plotter | None = None,
@@ -109,6 +113,7 @@ class LiveSession:
         self.paused = True
         self.error: BaseException | None = None
         self.updates = 0
+        self.shown_step = 0
         self.plotter = plotter if plotter is not None else pv.Plotter()
         self.mesh = pv.PolyData()
         self.particles = pv.PolyData()
@@ -138,6 +143,7 @@ class LiveSession:
         self._chunk = max(self.solver.check_every, 1)  # run() checks the mesh at its last step: keep the period
         self._version = 0
         self._shown = -1
+        self._stale = False
 
     def _brushed(self, points: np.ndarray) -> np.ndarray:
         """Erodibility of ``points`` (N, 3): 1 within a brush's radius, 0 elsewhere."""
@@ -186,7 +192,10 @@ class LiveSession:
         self._apply_picks()
         if self.stage == "hydraulic":
             self._pour()
-        self._publish()
+        if self._state[0] == self._shown:  # the view has taken the last state: hand it the next
+            self._publish()
+        else:
+            self._stale = True
         for callback in self._callbacks:
             callback(solver.step_count)
         if self._halt:
@@ -196,14 +205,25 @@ class LiveSession:
         """Run ``iterations`` iterations now, in the calling thread (while the worker is paused)."""
         with self._lock:
             self._before_steps()
-            self.solver.run(int(iterations), on_step=self._after_step)
+            try:
+                self.solver.run(int(iterations), on_step=self._after_step)
+            finally:
+                self._flush()
 
     def _publish(self) -> None:
-        """Copy the state the view needs."""
+        """Copy the state the view needs, with the vertex normals for smooth shading, and swap it in whole."""
         s = self.solver
         cloud = particles_polydata(s) if self.stage == "hydraulic" else pv.PolyData()
-        self._state = (s.points.copy(), s.faces.copy(), s.erosion_depth(), s.ids.copy(), cloud, s.step_count)
+        normals = vertex_normals(s.points, s.faces)  # here, not in the view's pipeline: the render thread only draws
         self._version += 1
+        self._state = (self._version, s.points.copy(), s.faces.copy(), s.erosion_depth(), s.ids.copy(), cloud,
+                       s.step_count, normals)
+        self._stale = False
+
+    def _flush(self) -> None:
+        """Publish the last iteration if the view had not taken the one before when it ended."""
+        if self._stale:
+            self._publish()
 
     def _work(self) -> None:
         try:
@@ -218,6 +238,8 @@ class LiveSession:
                         self.solver.run(self._chunk, on_step=self._after_step)
                     except _Halt:
                         pass
+                    finally:
+                        self._flush()
         except BaseException as exc:  # shown by update_view and re-raised by stop()
             self.error = exc
             self.paused = True
@@ -272,7 +294,7 @@ class LiveSession:
     @property
     def steps(self) -> int:
         """Iterations done since the start or the last reset."""
-        return int(self._state[5])
+        return int(self.solver.step_count)
 
     # -- interaction -------------------------------------------------------------------------
 
@@ -316,11 +338,12 @@ class LiveSession:
 
     def update_view(self, *, render: bool = True) -> bool:
         """Show the newest published state; return whether it was new."""
-        version = self._version  # read before the state: the state is at least this new
-        if version == self._shown:
+        state = self._state  # replaced whole by the worker, never changed
+        if state[0] == self._shown:
             return False
-        points, faces, depth, ids, cloud, step = self._state  # replaced whole by the worker, never changed
+        version, points, faces, depth, ids, cloud, step, normals = state
         self._shown = version
+        self.shown_step = int(step)
         if self._faces is not None and np.array_equal(self._faces, faces):
             self.mesh.points = points  # same triangles: move the points only
         else:
@@ -328,6 +351,8 @@ class LiveSession:
             self._faces = faces
         self.mesh.point_data["erosion_depth"] = depth
         self.mesh.point_data["input_id"] = ids
+        self.mesh.point_data.set_array(normals, "Normals")
+        self.mesh.point_data.active_normals_name = "Normals"
         self.particles.shallow_copy(cloud)
         if self._actor is not None:
             self._actor.mapper.scalar_range = scalar_style("erosion_depth", np.append(depth, 0.0))["clim"]
@@ -349,7 +374,7 @@ class LiveSession:
         p = self.plotter
         self.update_view(render=False)
         style = scalar_style("erosion_depth", np.append(self.mesh["erosion_depth"], 0.0))
-        self._actor = p.add_mesh(self.mesh, scalars="erosion_depth", smooth_shading=True, name="live_mesh",
+        self._actor = p.add_mesh(self.mesh, scalars="erosion_depth", interpolation="gouraud", name="live_mesh",
                                  scalar_bar_args={"title": "erosion_depth"}, **style)
         if self.stage == "hydraulic":
             self.particles.shallow_copy(pv.PolyData(np.zeros((1, 3))))  # an actor needs a point to start
@@ -393,7 +418,7 @@ class LiveSession:
 
 
 def interactive(mesh: pv.PolyData, *, stage: str = "hydraulic", off_screen: bool | None = None,
-                window_size: tuple[int, int] = (1024, 768), **options) -> LiveSession:
+                window_size: tuple[int, int] = (1024, 768), multi_samples: int = 0, **options) -> LiveSession:
     """Erode ``mesh`` live: pick on the surface to pour water or brush weathering, watch it change.
 
     Parameters
@@ -404,6 +429,9 @@ def interactive(mesh: pv.PolyData, *, stage: str = "hydraulic", off_screen: bool
     off_screen : bool, optional
         Render without a window (default: PyVista's setting).
     window_size : tuple of int, default: (1024, 768)
+    multi_samples : int, default: 0
+        Samples per pixel of the render window's anti-aliasing; each sample multiplies the cost of
+        a software (llvmpipe) render, so the live view renders one.
     **options
         See :class:`LiveSession`.
 
@@ -417,4 +445,5 @@ def interactive(mesh: pv.PolyData, *, stage: str = "hydraulic", off_screen: bool
         _offscreen_pyvista()
         off_screen = True
     plotter = pv.Plotter(off_screen=off_screen, window_size=list(window_size))
+    plotter.ren_win.SetMultiSamples(int(multi_samples))
     return LiveSession(mesh, stage=stage, plotter=plotter, **options)
