@@ -3,8 +3,8 @@
 The scene of ``bench_hydraulic.py``'s bunny: the scan (``../shared/data/bunny.ply``, holes
 closed) in a tank, a block of ~17.7k particles dropped on it, and a water source picked on
 its back. The worker thread steps the solver; the main thread calls
-:meth:`pverosion.live.LiveSession.update_view` in a loop, as the viewer's timer does, and
-renders off-screen. A *view update* is one rendered frame that shows an iteration the
+:meth:`pverosion.live.LiveSession.update_view` every ``TIMER_MS`` milliseconds (at once when
+the last call overran), as a window's timer does, and renders off-screen. A *view update* is one rendered frame that shows an iteration the
 previous frame did not (its ``shown_step`` differs), so the rate cannot exceed the solver's
 iteration rate. The JSON also gives the milliseconds of one iteration with the view idle
 (the peer, measured in the same run), of one update with the worker running and stopped
@@ -27,13 +27,13 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_hydraulic import bunny_tank  # noqa: E402  (the same bunny scene)
 
-from pverosion.live import interactive  # noqa: E402
+from pverosion.live import TIMER_MS, interactive  # noqa: E402
 
 
-def bunny_session(n_particles: int):
+def bunny_session(n_particles: int, threads: int | None = None):
     scene, block, domain = bunny_tank(n_particles)
     session = interactive(scene.mesh, stage="hydraulic", off_screen=True, window_size=(1024, 768),
-                          radius=scene.radius, domain=domain, walls=True)
+                          radius=scene.radius, domain=domain, walls=True, threads=threads)
     session.solver.fluid.add_particles(block)
     top = scene.mesh.points[np.argmax(scene.mesh.points[:, 2])]
     session.pick(top)
@@ -53,8 +53,10 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=20.0, help="length of the measured stretch")
     parser.add_argument("--warmup", type=int, default=10, help="iterations run before measuring (compilation)")
     parser.add_argument("--particles", type=int, default=17_700)
+    parser.add_argument("--threads", type=int, default=None,
+                        help="worker's kernel threads (default: LiveSession's, all but one)")
     args = parser.parse_args()
-    session = bunny_session(args.particles)
+    session = bunny_session(args.particles, args.threads)
     session.step(args.warmup)
     session.plotter.show(auto_close=False)  # a shown plotter renders on every update, as a window does
     load_before = _load()
@@ -69,15 +71,16 @@ def main() -> None:
     session.on_step(done.append)  # every iteration the worker runs, redone ones included
     session.start()
     start = time.perf_counter()
+    tick = start
     while time.perf_counter() - start < args.seconds:
+        tick = max(tick + TIMER_MS / 1000.0, time.perf_counter())  # the window's repeating timer
+        time.sleep(max(tick - time.perf_counter(), 0.0))
         clock = time.perf_counter()
         if session.update_view():  # rendered the newest published state
             update_times.append(time.perf_counter() - clock)
             step = session.shown_step
             updates += step > shown  # a frame counts only when it shows a later iteration than any before
             shown = max(shown, step)
-        else:
-            time.sleep(0.002)
     elapsed = time.perf_counter() - start
     session.stop()
     steps = len(done)
@@ -88,7 +91,7 @@ def main() -> None:
         session.update_view()
         alone.append(time.perf_counter() - clock)
     print(json.dumps({
-        "vertices": session.mesh.n_points, "faces": session.mesh.n_cells, "particles": session.particles.n_points,
+        "worker_threads": session.threads, "vertices": session.mesh.n_points, "faces": session.mesh.n_cells, "particles": session.particles.n_points,
         "seconds": round(elapsed, 2), "view_updates": updates, "iterations": steps,
         "iterations_net": session.steps - step0,
         "view_updates_per_s": round(updates / elapsed, 2), "iterations_per_s": round(steps / elapsed, 2),

@@ -18,6 +18,7 @@ import os
 import threading
 from pathlib import Path
 
+import numba
 import numpy as np
 import pyvista as pv
 
@@ -38,6 +39,9 @@ class _Halt(Exception):
 
 STAGES = ("hydraulic", "weather")
 """Stages that run live."""
+
+TIMER_MS = 50
+"""Period of a window's view updates in milliseconds (a late one starts as soon as the last returns)."""
 
 
 class LiveSession:
@@ -60,6 +64,9 @@ class LiveSession:
     gravity : (3,) float, default: (0, 0, -9.81)
         Hydraulic: gravity in model units per second squared; the source hangs above a pick against it
         (e.g. ``(0, -9.81, 0)`` for the bunny scan, whose up is +y).
+    threads : int, optional
+        Threads the worker's compiled kernels use (default: all of numba's but one, at least one),
+        so that rendering keeps a core.
     **options
         Passed to :class:`~pverosion.kernels.hydraulic.erosion.HydraulicSolver` or
         :class:`~pverosion.kernels.weathering.model.WeatheringSolver`.
@@ -85,9 +92,15 @@ class LiveSession:
 
     def __init__(self, mesh: pv.PolyData, *, stage: str = "hydraulic", plotter: pv.Plotter | None = None,
                  radius: float = 0.0, source_radius: float | None = None, speed: float | None = None,
-                 gravity=(0.0, 0.0, -9.81), **options) -> None:
+                 gravity=(0.0, 0.0, -9.81), threads: int | None = None, **options) -> None:
         if stage not in STAGES:
             raise ValueError(f"stage must be one of {STAGES}; got {stage!r}")
+        available = numba.config.NUMBA_NUM_THREADS
+        if threads is None:
+            threads = max(available - 1, 1)
+        if not 1 <= threads <= available:
+            raise ValueError(f"threads must be in [1, {available}]; got {threads!r}")
+        self.threads = int(threads)
         points, faces = as_triangle_mesh(np.asarray(mesh.points, dtype=np.float64), mesh.regular_faces)
         self.stage = stage
         self._input = (points, faces)
@@ -226,6 +239,7 @@ class LiveSession:
             self._publish()
 
     def _work(self) -> None:
+        numba.set_num_threads(self.threads)  # per thread: the caller's kernels keep their setting
         try:
             while True:
                 with self._lock:
@@ -394,7 +408,7 @@ class LiveSession:
                                          position=(10.0, 90.0), size=30, color_on="grey")
             p.add_text("save", position=(45, 95), font_size=9, name="save_label")
             p.iren.add_observer("TimerEvent", lambda *_: self.update_view())
-            p.iren.create_timer(50, repeating=True)
+            p.iren.create_timer(TIMER_MS, repeating=True)
         p.view_isometric()
 
     def _save_name(self) -> str:
