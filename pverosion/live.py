@@ -445,7 +445,8 @@ def interactive(mesh: pv.PolyData, *, stage: str = "hydraulic", off_screen: bool
     window_size : tuple of int, default: (1024, 768)
     multi_samples : int, default: 0
         Samples per pixel of the render window's anti-aliasing; each sample multiplies the cost of
-        a software (llvmpipe) render, so the live view renders one.
+        a software (llvmpipe) render, so the live view renders one. The scene is lit by one
+        headlight (PyVista's default light kit has five).
     **options
         See :class:`LiveSession`.
 
@@ -458,6 +459,7 @@ def interactive(mesh: pv.PolyData, *, stage: str = "hydraulic", off_screen: bool
     if off_screen or (off_screen is None and pv.OFF_SCREEN):
         _offscreen_pyvista()
         off_screen = True
-    plotter = pv.Plotter(off_screen=off_screen, window_size=list(window_size))
+    plotter = pv.Plotter(off_screen=off_screen, window_size=list(window_size), lighting="none")
+    plotter.add_light(pv.Light(light_type="headlight"))  # one light: a software render shades per light
     plotter.ren_win.SetMultiSamples(int(multi_samples))
     return LiveSession(mesh, stage=stage, plotter=plotter, **options)
