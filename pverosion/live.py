@@ -153,7 +153,6 @@ class LiveSession:
                                   radius=self.source_radius, rate=1.0).lattice(2.0 * self.radius)
         else:
             self.solver = WeatheringSolver(points, faces, erodibility=self._brushed, **self._options)
-        self._chunk = max(self.solver.check_every, 1)  # run() checks the mesh at its last step: keep the period
         self._version = 0
         self._shown = -1
         self._stale = False
@@ -249,7 +248,9 @@ class LiveSession:
                         return
                     self._before_steps()
                     try:
-                        self.solver.run(self._chunk, on_step=self._after_step)
+                        # one at a time: run() has the guard check its last step, so every state shown is checked
+                        # and a rollback redoes one iteration, not the guard's whole period
+                        self.solver.run(1, on_step=self._after_step)
                     except _Halt:
                         pass
                     finally:
