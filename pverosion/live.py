@@ -1,9 +1,11 @@
 """Live erosion: a stage steps in a background thread while a plotter shows it; picks place water or brush weathering.
 
 :func:`interactive` returns a :class:`LiveSession`. Its solver runs one
-iteration at a time in a worker thread and publishes a copy of the state
-after each; the plotter's timer (or a script calling
-:meth:`LiveSession.update_view`) shows the newest copy. Picking a point on
+iteration at a time in a worker thread; after an iteration it publishes a
+copy of the state (with vertex normals, so the view computes nothing) if
+the view has taken the previous one, and always when it stops. The
+plotter's timer (or a script calling :meth:`LiveSession.update_view`)
+moves the shown arrays to the newest copy and renders, at its own pace. Picking a point on
 the surface (right click or the ``P`` key in a window, :meth:`LiveSession.pick`
 or :meth:`LiveSession.pick_screen` in scripts) places the water source above
 it (``stage="hydraulic"``) or adds a weathering brush there
@@ -16,6 +18,7 @@ import os
 import threading
 from pathlib import Path
 
+import numba
 import numpy as np
 import pyvista as pv
 
@@ -23,7 +26,7 @@ from pverosion.filters.hydraulic import particles_polydata
 from pverosion.io import write_atomic
 from pverosion.kernels.fluid.particle_fluid import Emitter, FluidParameters
 from pverosion.kernels.hydraulic.erosion import HydraulicSolver
-from pverosion.kernels.mesh.geometry import average_edge_length
+from pverosion.kernels.mesh.geometry import average_edge_length, vertex_normals
 from pverosion.kernels.validation import as_triangle_mesh
 from pverosion.kernels.weathering.model import WeatheringSolver
 from pverosion.plotting import _offscreen_pyvista, scalar_style
@@ -36,6 +39,9 @@ class _Halt(Exception):
 
 STAGES = ("hydraulic", "weather")
 """Stages that run live."""
+
+TIMER_MS = 50
+"""Period of a window's view updates in milliseconds (a late one starts as soon as the last returns)."""
 
 
 class LiveSession:
@@ -58,6 +64,9 @@ class LiveSession:
     gravity : (3,) float, default: (0, 0, -9.81)
         Hydraulic: gravity in model units per second squared; the source hangs above a pick against it
         (e.g. ``(0, -9.81, 0)`` for the bunny scan, whose up is +y).
+    threads : int, optional
+        Threads the worker's compiled kernels use (default: all of numba's but one, at least one),
+        so that rendering keeps a core.
     **options
         Passed to :class:`~pverosion.kernels.hydraulic.erosion.HydraulicSolver` or
         :class:`~pverosion.kernels.weathering.model.WeatheringSolver`.
@@ -77,13 +86,21 @@ class LiveSession:
         Centres of the weathering brushes (weather).
     updates : int
         View updates that showed a new state.
+    shown_step : int
+        Iteration the view shows.
     """
 
     def __init__(self, mesh: pv.PolyData, *, stage: str = "hydraulic", plotter: pv.Plotter | None = None,
                  radius: float = 0.0, source_radius: float | None = None, speed: float | None = None,
-                 gravity=(0.0, 0.0, -9.81), **options) -> None:
+                 gravity=(0.0, 0.0, -9.81), threads: int | None = None, **options) -> None:
         if stage not in STAGES:
             raise ValueError(f"stage must be one of {STAGES}; got {stage!r}")
+        available = numba.config.NUMBA_NUM_THREADS
+        if threads is None:
+            threads = max(available - 1, 1)
+        if not 1 <= threads <= available:
+            raise ValueError(f"threads must be in [1, {available}]; got {threads!r}")
+        self.threads = int(threads)
         points, faces = as_triangle_mesh(np.asarray(mesh.points, dtype=np.float64), mesh.regular_faces)
         self.stage = stage
         self._input = (points, faces)
@@ -109,6 +126,7 @@ class LiveSession:
         self.paused = True
         self.error: BaseException | None = None
         self.updates = 0
+        self.shown_step = 0
         self.plotter = plotter if plotter is not None else pv.Plotter()
         self.mesh = pv.PolyData()
         self.particles = pv.PolyData()
@@ -135,9 +153,9 @@ class LiveSession:
                                   radius=self.source_radius, rate=1.0).lattice(2.0 * self.radius)
         else:
             self.solver = WeatheringSolver(points, faces, erodibility=self._brushed, **self._options)
-        self._chunk = max(self.solver.check_every, 1)  # run() checks the mesh at its last step: keep the period
         self._version = 0
         self._shown = -1
+        self._stale = False
 
     def _brushed(self, points: np.ndarray) -> np.ndarray:
         """Erodibility of ``points`` (N, 3): 1 within a brush's radius, 0 elsewhere."""
@@ -186,7 +204,10 @@ class LiveSession:
         self._apply_picks()
         if self.stage == "hydraulic":
             self._pour()
-        self._publish()
+        if self._state[0] == self._shown:  # the view has taken the last state: hand it the next
+            self._publish()
+        else:
+            self._stale = True
         for callback in self._callbacks:
             callback(solver.step_count)
         if self._halt:
@@ -196,16 +217,28 @@ class LiveSession:
         """Run ``iterations`` iterations now, in the calling thread (while the worker is paused)."""
         with self._lock:
             self._before_steps()
-            self.solver.run(int(iterations), on_step=self._after_step)
+            try:
+                self.solver.run(int(iterations), on_step=self._after_step)
+            finally:
+                self._flush()
 
     def _publish(self) -> None:
-        """Copy the state the view needs."""
+        """Copy the state the view needs, with the vertex normals for smooth shading, and swap it in whole."""
         s = self.solver
         cloud = particles_polydata(s) if self.stage == "hydraulic" else pv.PolyData()
-        self._state = (s.points.copy(), s.faces.copy(), s.erosion_depth(), s.ids.copy(), cloud, s.step_count)
+        normals = vertex_normals(s.points, s.faces)  # here, not in the view's pipeline: the render thread only draws
         self._version += 1
+        self._state = (self._version, s.points.copy(), s.faces.copy(), s.erosion_depth(), s.ids.copy(), cloud,
+                       s.step_count, normals)
+        self._stale = False
+
+    def _flush(self) -> None:
+        """Publish the last iteration if the view had not taken the one before when it ended."""
+        if self._stale:
+            self._publish()
 
     def _work(self) -> None:
+        numba.set_num_threads(self.threads)  # per thread: the caller's kernels keep their setting
         try:
             while True:
                 with self._lock:
@@ -215,9 +248,13 @@ class LiveSession:
                         return
                     self._before_steps()
                     try:
-                        self.solver.run(self._chunk, on_step=self._after_step)
+                        # one at a time: run() has the guard check its last step, so every state shown is checked
+                        # and a rollback redoes one iteration, not the guard's whole period
+                        self.solver.run(1, on_step=self._after_step)
                     except _Halt:
                         pass
+                    finally:
+                        self._flush()
         except BaseException as exc:  # shown by update_view and re-raised by stop()
             self.error = exc
             self.paused = True
@@ -272,7 +309,7 @@ class LiveSession:
     @property
     def steps(self) -> int:
         """Iterations done since the start or the last reset."""
-        return int(self._state[5])
+        return int(self.solver.step_count)
 
     # -- interaction -------------------------------------------------------------------------
 
@@ -316,11 +353,12 @@ class LiveSession:
 
     def update_view(self, *, render: bool = True) -> bool:
         """Show the newest published state; return whether it was new."""
-        version = self._version  # read before the state: the state is at least this new
-        if version == self._shown:
+        state = self._state  # replaced whole by the worker, never changed
+        if state[0] == self._shown:
             return False
-        points, faces, depth, ids, cloud, step = self._state  # replaced whole by the worker, never changed
+        version, points, faces, depth, ids, cloud, step, normals = state
         self._shown = version
+        self.shown_step = int(step)
         if self._faces is not None and np.array_equal(self._faces, faces):
             self.mesh.points = points  # same triangles: move the points only
         else:
@@ -328,6 +366,8 @@ class LiveSession:
             self._faces = faces
         self.mesh.point_data["erosion_depth"] = depth
         self.mesh.point_data["input_id"] = ids
+        self.mesh.point_data.set_array(normals, "Normals")
+        self.mesh.point_data.active_normals_name = "Normals"
         self.particles.shallow_copy(cloud)
         if self._actor is not None:
             self._actor.mapper.scalar_range = scalar_style("erosion_depth", np.append(depth, 0.0))["clim"]
@@ -349,7 +389,7 @@ class LiveSession:
         p = self.plotter
         self.update_view(render=False)
         style = scalar_style("erosion_depth", np.append(self.mesh["erosion_depth"], 0.0))
-        self._actor = p.add_mesh(self.mesh, scalars="erosion_depth", smooth_shading=True, name="live_mesh",
+        self._actor = p.add_mesh(self.mesh, scalars="erosion_depth", interpolation="gouraud", name="live_mesh",
                                  scalar_bar_args={"title": "erosion_depth"}, **style)
         if self.stage == "hydraulic":
             self.particles.shallow_copy(pv.PolyData(np.zeros((1, 3))))  # an actor needs a point to start
@@ -369,7 +409,7 @@ class LiveSession:
                                          position=(10.0, 90.0), size=30, color_on="grey")
             p.add_text("save", position=(45, 95), font_size=9, name="save_label")
             p.iren.add_observer("TimerEvent", lambda *_: self.update_view())
-            p.iren.create_timer(50, repeating=True)
+            p.iren.create_timer(TIMER_MS, repeating=True)
         p.view_isometric()
 
     def _save_name(self) -> str:
@@ -393,7 +433,7 @@ class LiveSession:
 
 
 def interactive(mesh: pv.PolyData, *, stage: str = "hydraulic", off_screen: bool | None = None,
-                window_size: tuple[int, int] = (1024, 768), **options) -> LiveSession:
+                window_size: tuple[int, int] = (1024, 768), multi_samples: int = 0, **options) -> LiveSession:
     """Erode ``mesh`` live: pick on the surface to pour water or brush weathering, watch it change.
 
     Parameters
@@ -404,6 +444,10 @@ def interactive(mesh: pv.PolyData, *, stage: str = "hydraulic", off_screen: bool
     off_screen : bool, optional
         Render without a window (default: PyVista's setting).
     window_size : tuple of int, default: (1024, 768)
+    multi_samples : int, default: 0
+        Samples per pixel of the render window's anti-aliasing; each sample multiplies the cost of
+        a software (llvmpipe) render, so the live view renders one. The scene is lit by one
+        headlight (PyVista's default light kit has five).
     **options
         See :class:`LiveSession`.
 
@@ -416,5 +460,7 @@ def interactive(mesh: pv.PolyData, *, stage: str = "hydraulic", off_screen: bool
     if off_screen or (off_screen is None and pv.OFF_SCREEN):
         _offscreen_pyvista()
         off_screen = True
-    plotter = pv.Plotter(off_screen=off_screen, window_size=list(window_size))
+    plotter = pv.Plotter(off_screen=off_screen, window_size=list(window_size), lighting="none")
+    plotter.add_light(pv.Light(light_type="headlight"))  # one light: a software render shades per light
+    plotter.ren_win.SetMultiSamples(int(multi_samples))
     return LiveSession(mesh, stage=stage, plotter=plotter, **options)

@@ -92,6 +92,12 @@ def test_weathering_brush_erodes_only_inside_it(tmp_path):
         assert moved.any()
         original = mesh.points[session.mesh["input_id"]]
         assert np.linalg.norm(original[moved] - corner, axis=1).max() <= 0.5 + 1e-9
+        # the shading normals shown are the shown surface's own (computed by the worker, not by the view)
+        from pverosion.kernels.mesh.geometry import vertex_normals
+
+        shown = session.mesh
+        np.testing.assert_allclose(shown.point_data.active_normals,
+                                   vertex_normals(np.asarray(shown.points), shown.regular_faces), atol=1e-12)
         path = session.save(tmp_path / "state.vtp")
         import pyvista as pv
 
@@ -104,3 +110,11 @@ def test_weathering_brush_erodes_only_inside_it(tmp_path):
 def test_live_rejects_unknown_stage():
     with pytest.raises(ValueError, match="stage"):
         pverosion.interactive(load_cube(resolution=4), stage="volcano", off_screen=True)
+
+
+def test_live_rejects_bad_thread_count():
+    import numba
+
+    for threads in (0, numba.config.NUMBA_NUM_THREADS + 1):
+        with pytest.raises(ValueError, match="threads"):
+            pverosion.interactive(load_cube(resolution=4), off_screen=True, threads=threads)
