@@ -8,14 +8,9 @@ import numpy as np
 import pytest
 import pyvista as pv
 
-from pverosion.kernels.fluid.particle_fluid import (
-    Drain,
-    Emitter,
-    FluidParameters,
-    ParticleFluid,
-    _drift_buckets,
-    _mesh_grid,
-)
+from pverosion.kernels.fluid.collision import _drift_buckets
+from pverosion.kernels.fluid.grids import _mesh_grid
+from pverosion.kernels.fluid.particle_fluid import Drain, Emitter, FluidParameters, ParticleFluid
 
 R = 0.05
 D = 2.0 * R

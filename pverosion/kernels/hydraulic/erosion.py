@@ -60,7 +60,8 @@ from numba import njit, prange
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS, normalize_shifted
 from pverosion.kernels.curvature.operator import CurvatureTracker
-from pverosion.kernels.fluid.particle_fluid import FluidParameters, ParticleFluid, _closest_on_boundary, _over
+from pverosion.kernels.fluid.collision import _closest_on_boundary, _over
+from pverosion.kernels.fluid.particle_fluid import FluidParameters, ParticleFluid
 from pverosion.kernels.materials.erodibility import Erodibility, check_erodibility, erodibility_now
 from pverosion.kernels.mesh.geometry import average_edge_length, point_areas
 from pverosion.kernels.mesh.laplacian import laplacian_vectors
