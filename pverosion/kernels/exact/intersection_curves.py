@@ -842,7 +842,7 @@ def _one_name_per_point(pts, fcs, canon, plane, keys, pairs, locs):
     (not in one plane) at a point, that point is also where the edge of f
     crosses the plane of g and where the edge of g crosses the plane of f,
     as a third face in either plane names it: these names are linked and
-    the point takes the first of them.
+    the point keeps the name of the two edges.
     """
     keys = _by_plane(keys, plane)
     end_locs = locs.reshape(-1, 2)  # (2 S, 2): the end's location on f and on g
@@ -872,9 +872,11 @@ def _one_name_per_point(pts, fcs, canon, plane, keys, pairs, locs):
     links = coo_matrix((np.ones(len(named)), (inverse[named], inverse[len(keys):])),
                        shape=(len(unique), len(unique)))
     _, label = connected_components(links, directed=False)
-    first = np.full(label.max() + 1, len(unique))
-    np.minimum.at(first, label, np.arange(len(unique)))
-    used, point = np.unique(first[label[inverse[:len(keys)]]], return_inverse=True)
+    index = np.arange(len(unique))
+    rank = np.where(unique[:, 0] == EDGE_EDGE, index, index + len(unique))  # an edge-edge name first
+    first = np.full(label.max() + 1, 2 * len(unique))
+    np.minimum.at(first, label, rank)
+    used, point = np.unique(first[label[inverse[:len(keys)]]] % len(unique), return_inverse=True)
     return unique[used], point.reshape(-1, 2)
 
 
