@@ -897,12 +897,10 @@ def _merge_coincident(keys, coords, segments, pairs, locations):
     dropped. Returns the keys, coordinates, segments, pairs and locations."""
     if len(coords) < 2:
         return keys, coords, segments, pairs, locations
-    _, first, group = np.unique(coords, axis=0, return_index=True, return_inverse=True)
-    if len(first) == len(coords):
+    lowest = canonical_vertices(coords)
+    if np.all(lowest == np.arange(len(coords))):
         return keys, coords, segments, pairs, locations
-    lowest = np.full(len(first), len(coords))
-    np.minimum.at(lowest, group.ravel(), np.arange(len(coords)))
-    used, point = np.unique(lowest[group.ravel()], return_inverse=True)
+    used, point = np.unique(lowest, return_inverse=True)
     segments = point[segments]
     kept = segments[:, 0] != segments[:, 1]
     return keys[used], coords[used], segments[kept], pairs[kept], locations[kept]
