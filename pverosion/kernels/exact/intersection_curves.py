@@ -21,6 +21,12 @@ coordinates, so two triangle pairs that meet at the same point name it alike:
 - three faces, where the segments of two pairs cross inside a face (three
   surfaces meet at a point).
 
+A point that several of these name (an edge crossing two faces in one plane,
+two edges crossing where a third face's edge crosses the plane of one of
+them, a vertex exactly where two edges cross) keeps one name, so that every
+face cut there sees one point; a point lying inside a segment of another
+pair on a face (a T-junction of three surfaces) cuts that segment.
+
 The segments of all pairs then link up through their shared points into
 polylines (:func:`trace_polylines`): following a segment's end to the next
 segment is the step of TNOIT to the neighbouring triangle across the edge
@@ -73,7 +79,7 @@ class IntersectionCurves:
         What produces each point: ``(VERTEX, v, 0)`` with ``v`` the lowest
         index of the input vertices at that position; ``(EDGE_FACE, e, f)``
         with ``e = a * V + b`` the edge between vertices a < b and ``f`` the
-        face; ``(EDGE_EDGE, e1, e2)`` with ``e1 < e2``; ``(FACE_FACE_FACE, f,
+        face (the lowest of the faces known to lie in its plane); ``(EDGE_EDGE, e1, e2)`` with ``e1 < e2``; ``(FACE_FACE_FACE, f,
         g * F + h)`` where three faces f < g < h meet (their segments cross).
     segments : numpy.ndarray, shape (S, 2), int64
         Point indices of the intersection segment of each intersecting pair.
