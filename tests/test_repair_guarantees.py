@@ -330,8 +330,8 @@ def test_fuzz_corpus_against_manifold3d(one_thread):
     assert sum(outcomes.values()) == total
     assert outcomes.get("ok", 0) + outcomes.get("coplanar", 0) >= 0.9 * total, outcomes
     assert outcomes.get("coplanar", 0) >= 50, outcomes  # faces overlapping in common planes, handled
-    # exactly degenerate meetings of three surfaces, rarely, are refused with RepairError
-    assert outcomes.get("refused", 0) <= 0.01 * total, outcomes
+    # one soup of three crossing parts without faces in a common plane (case 374) is still refused with RepairError
+    assert outcomes.get("refused", 0) <= 1, outcomes
 
 
 SOUPS_NAMING_ONE_POINT_TWICE = (124, 224, 244, 459)

@@ -79,7 +79,8 @@ class IntersectionCurves:
         What produces each point: ``(VERTEX, v, 0)`` with ``v`` the lowest
         index of the input vertices at that position; ``(EDGE_FACE, e, f)``
         with ``e = a * V + b`` the edge between vertices a < b and ``f`` the
-        face (the lowest of the faces known to lie in its plane); ``(EDGE_EDGE, e1, e2)`` with ``e1 < e2``; ``(FACE_FACE_FACE, f,
+        face (the lowest of the faces known to lie in its plane);
+        ``(EDGE_EDGE, e1, e2)`` with ``e1 < e2``; ``(FACE_FACE_FACE, f,
         g * F + h)`` where three faces f < g < h meet (their segments cross).
     segments : numpy.ndarray, shape (S, 2), int64
         Point indices of the intersection segment of each intersecting pair.
