@@ -815,7 +815,7 @@ def _junction_splits(pairs, locations, junctions):
 # --- the whole boundary --------------------------------------------------------------------------------------
 
 
-def plane_representatives(n_faces: int, coplanar: np.ndarray) -> np.ndarray:
+def _plane_representatives(n_faces: int, coplanar: np.ndarray) -> np.ndarray:
     """The lowest face of every face's group of faces in one plane (F,), the groups linked by ``coplanar`` (K, 2)
     pairs of faces in one plane (exact coplanarity is transitive)."""
     plane = np.arange(n_faces)
@@ -1002,7 +1002,7 @@ def curves_of(pts: np.ndarray, fcs: np.ndarray, group, canon: np.ndarray, query=
         seg_pairs = np.concatenate([seg_pairs, chord_pairs])
         seg_locs = np.concatenate([seg_locs, chord_locs])
         seg_keys = np.concatenate([seg_keys, chord_keys.reshape(-1, 3)])
-    plane = plane_representatives(len(fcs), pairs[status == _COPLANAR])
+    plane = _plane_representatives(len(fcs), pairs[status == _COPLANAR])
     if len(seg_keys):
         unique, segments = _one_name_per_point(pts, fcs, canon, plane, seg_keys, seg_pairs, seg_locs)
     else:
