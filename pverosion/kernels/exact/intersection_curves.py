@@ -21,6 +21,12 @@ coordinates, so two triangle pairs that meet at the same point name it alike:
 - three faces, where the segments of two pairs cross inside a face (three
   surfaces meet at a point).
 
+A point that several of these name (an edge crossing two faces in one plane,
+two edges crossing where a third face's edge crosses the plane of one of
+them, a vertex exactly where two edges cross) keeps one name, so that every
+face cut there sees one point; a point lying inside a segment of another
+pair on a face (a T-junction of three surfaces) cuts that segment.
+
 The segments of all pairs then link up through their shared points into
 polylines (:func:`trace_polylines`): following a segment's end to the next
 segment is the step of TNOIT to the neighbouring triangle across the edge
@@ -73,7 +79,8 @@ class IntersectionCurves:
         What produces each point: ``(VERTEX, v, 0)`` with ``v`` the lowest
         index of the input vertices at that position; ``(EDGE_FACE, e, f)``
         with ``e = a * V + b`` the edge between vertices a < b and ``f`` the
-        face; ``(EDGE_EDGE, e1, e2)`` with ``e1 < e2``; ``(FACE_FACE_FACE, f,
+        face (the lowest of the faces known to lie in its plane);
+        ``(EDGE_EDGE, e1, e2)`` with ``e1 < e2``; ``(FACE_FACE_FACE, f,
         g * F + h)`` where three faces f < g < h meet (their segments cross).
     segments : numpy.ndarray, shape (S, 2), int64
         Point indices of the intersection segment of each intersecting pair.
@@ -637,6 +644,45 @@ def _crossings_on_faces(p, faces, coords, segments, listed_face, listed_partner,
     return out
 
 
+@njit(cache=True)
+def _junctions_on_faces(p, faces, coords, segments, listed_face, listed_segment, start):
+    """Ends of segments lying strictly inside another segment of the same face: rows (face, segment, point).
+
+    Where a vertex of a third surface lies on the curve of two others (a
+    T-junction), the segment through it is cut there. Found, like
+    :func:`_crossings_on_faces`, in the projection along the face's normal
+    (exact orient2d on the computed points).
+    """
+    found = []
+    for i in range(start.shape[0] - 1):
+        lo, hi = start[i], start[i + 1]
+        if hi - lo < 2:
+            continue
+        f = listed_face[lo]
+        axis = _drop_axis(p, faces[f])
+        u, v = (axis + 1) % 3, (axis + 2) % 3
+        for m in range(lo, hi):
+            s1 = listed_segment[m]
+            a, b = segments[s1, 0], segments[s1, 1]
+            for n in range(lo, hi):
+                s2 = listed_segment[n]
+                for c in (segments[s2, 0], segments[s2, 1]):
+                    if c == a or c == b:
+                        continue
+                    if sign_orient2d(coords[a, u], coords[a, v], coords[b, u], coords[b, v],
+                                     coords[c, u], coords[c, v]) != 0:
+                        continue
+                    along = ((coords[c, u] - coords[a, u]) * (coords[b, u] - coords[a, u])
+                             + (coords[c, v] - coords[a, v]) * (coords[b, v] - coords[a, v]))
+                    length = ((coords[b, u] - coords[a, u]) ** 2 + (coords[b, v] - coords[a, v]) ** 2)
+                    if 0.0 < along < length:
+                        found.append((f, s1, c))
+    out = np.empty((len(found), 3), np.int64)
+    for k in range(len(found)):
+        out[k, 0], out[k, 1], out[k, 2] = found[k]
+    return out
+
+
 _EDGE_BITS = np.array([0b101, 0b011, 0b110, 0b001, 0b010, 0b100, 0b000])
 """The edges of a face (bit k: edge k) that a location 0..6 lies on: a vertex on its two edges."""
 
@@ -648,7 +694,7 @@ def _edge_along(loc0: np.ndarray, loc1: np.ndarray) -> np.ndarray:
     return np.where(common == 0, -1, np.where(common & 1, 0, np.where(common & 2, 1, 2)))
 
 
-def _split_at_triple_points(pts, fcs, canon, keys, coords, segments, pairs, locations):
+def _split_at_triple_points(pts, fcs, canon, plane, keys, coords, segments, pairs, locations):
     """Split the segments where the curves of three surfaces cross inside a face.
 
     The point where the segments of two partner faces g and h cross inside
@@ -679,7 +725,8 @@ def _split_at_triple_points(pts, fcs, canon, keys, coords, segments, pairs, loca
         on_rim = ((_edge_along(locations[s1, 0, own1], locations[s1, 1, own1]) >= 0)
                   | (_edge_along(locations[s2, 0, own2], locations[s2, 1, own2]) >= 0))
         crossings = crossings[~on_rim]
-    if len(crossings) == 0:
+    junctions = _junctions_on_faces(pts, fcs, coords, segments, face, seg, start)
+    if len(crossings) == 0 and len(junctions) == 0:
         return keys, coords, segments, pairs, locations
     n_faces, n_vertices = len(fcs), len(pts)
     f, s1, s2 = crossings.T
@@ -715,11 +762,12 @@ def _split_at_triple_points(pts, fcs, canon, keys, coords, segments, pairs, loca
     wanted = np.minimum(g, h) * n_faces + np.maximum(g, h)
     at = np.minimum(np.searchsorted(pair_key[by_key], wanted), len(by_key) - 1)
     third = np.where((pair_key[by_key[at]] == wanted) & ~along1 & ~along2, by_key[at], -1)
-    split_seg = np.concatenate([s1, s2, third])
-    split_key = np.concatenate([new_keys, new_keys, new_keys])
-    split_loc = np.concatenate([loc1, loc2, np.full((len(f), 2), _INSIDE, np.int64)])
+    junction_seg, junction_loc = _junction_splits(pairs, locations, junctions)
+    split_seg = np.concatenate([s1, s2, third, junction_seg])
+    split_key = np.concatenate([new_keys, new_keys, new_keys, keys[junctions[:, 2]]])
+    split_loc = np.concatenate([loc1, loc2, np.full((len(f), 2), _INSIDE, np.int64), junction_loc])
     valid = split_seg >= 0
-    split_key, split_seg, split_loc = split_key[valid], split_seg[valid], split_loc[valid]
+    split_key, split_seg, split_loc = _by_plane(split_key[valid], plane), split_seg[valid], split_loc[valid]
     all_keys, inverse = unique_rows(np.concatenate([keys, split_key]))
     old = inverse[:len(keys)]
     all_coords = np.empty((len(all_keys), 3))
@@ -753,7 +801,121 @@ def _split_at_triple_points(pts, fcs, canon, keys, coords, segments, pairs, loca
     return all_keys, all_coords, np.concatenate(out_seg), np.concatenate(out_pairs), np.concatenate(out_loc)
 
 
+def _junction_splits(pairs, locations, junctions):
+    """The segments (J,) cut at the points of ``junctions`` (J, 3) rows (face, segment, point) and the points'
+    locations on the segments' two faces (J, 2): on the edge the segment lies along, or inside the face."""
+    seg = junctions[:, 1]
+    loc = np.full((len(seg), 2), _INSIDE, np.int64)
+    for side in range(2):
+        j = _edge_along(locations[seg, 0, side], locations[seg, 1, side])
+        loc[:, side] = np.where(j >= 0, _EDGE + j, _INSIDE)
+    return seg, loc
+
+
 # --- the whole boundary --------------------------------------------------------------------------------------
+
+
+def _plane_representatives(n_faces: int, coplanar: np.ndarray) -> np.ndarray:
+    """The lowest face of every face's group of faces in one plane (F,), the groups linked by ``coplanar`` (K, 2)
+    pairs of faces in one plane (exact coplanarity is transitive)."""
+    plane = np.arange(n_faces)
+    if len(coplanar) == 0:
+        return plane
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    links = coo_matrix((np.ones(len(coplanar)), (coplanar[:, 0], coplanar[:, 1])), shape=(n_faces, n_faces))
+    _, label = connected_components(links, directed=False)
+    lowest = np.full(label.max() + 1, n_faces)
+    np.minimum.at(lowest, label, plane)
+    return lowest[label]
+
+
+def _by_plane(keys: np.ndarray, plane: np.ndarray) -> np.ndarray:
+    """Keys (N, 3) with the face of every :data:`EDGE_FACE` point replaced by its plane's lowest face: where an edge
+    crosses faces in one plane, it crosses that plane at one point."""
+    keys = keys.copy()
+    edge_face = keys[:, 0] == EDGE_FACE
+    keys[edge_face, 2] = plane[keys[edge_face, 2]]
+    return keys
+
+
+def _one_name_per_point(pts, fcs, canon, plane, keys, pairs, locs):
+    """Unique point keys (P, 3) and the segments (S, 2) of segment end keys ``keys`` (2 S, 3), every point named
+    once.
+
+    An edge crossing faces in one plane crosses the plane at one point
+    (:func:`_by_plane`); where an edge of face f crosses an edge of face g
+    (not in one plane) at a point, that point is also where the edge of f
+    crosses the plane of g and where the edge of g crosses the plane of f,
+    as a third face in either plane names it: these names are linked and
+    the point keeps the name of the two edges.
+    """
+    keys = _by_plane(keys, plane)
+    end_locs = locs.reshape(-1, 2)  # (2 S, 2): the end's location on f and on g
+    end_faces = np.repeat(pairs, 2, axis=0)
+    transversal = ((keys[:, 0] == EDGE_EDGE) & (end_locs[:, 0] >= _EDGE) & (end_locs[:, 1] >= _EDGE)
+                   & (end_locs[:, 0] < _INSIDE) & (end_locs[:, 1] < _INSIDE)
+                   & ~_in_one_plane(plane, end_faces))
+    rows = np.flatnonzero(transversal)
+    n_vertices = len(pts)
+    named, aliases = [], []
+    for side in range(2):  # the edge of face ``side`` crossing the plane of the other face (not lying in it)
+        face, other = end_faces[rows, side], end_faces[rows, 1 - side]
+        k = end_locs[rows, side] - _EDGE
+        a, b = canon[fcs[face, k]], canon[fcs[face, (k + 1) % 3]]
+        crossing = _crosses_plane(pts, fcs, a, b, other)
+        named.append(rows[crossing])
+        aliases.append(np.stack([np.full(crossing.sum(), EDGE_FACE),
+                                 (np.minimum(a, b) * n_vertices + np.maximum(a, b))[crossing], plane[other[crossing]]],
+                                axis=1))
+    named = np.concatenate(named)
+    unique, inverse = unique_rows(np.concatenate([keys, *aliases]))
+    if len(named) == 0:
+        return unique, inverse.reshape(-1, 2)
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    links = coo_matrix((np.ones(len(named)), (inverse[named], inverse[len(keys):])),
+                       shape=(len(unique), len(unique)))
+    _, label = connected_components(links, directed=False)
+    index = np.arange(len(unique))
+    rank = np.where(unique[:, 0] == EDGE_EDGE, index, index + len(unique))  # an edge-edge name first
+    first = np.full(label.max() + 1, 2 * len(unique))
+    np.minimum.at(first, label, rank)
+    used, point = np.unique(first[label[inverse[:len(keys)]]] % len(unique), return_inverse=True)
+    return unique[used], point.reshape(-1, 2)
+
+
+@njit(cache=True)
+def _crosses_plane(p, faces, a, b, f):
+    """Whether each segment (a[i], b[i]) has its ends strictly on both sides of the plane of face f[i] (N,) bool,
+    exactly."""
+    out = np.empty(a.shape[0], np.bool_)
+    for i in range(a.shape[0]):
+        t = faces[f[i]]
+        out[i] = _o3(p, t[0], t[1], t[2], a[i]) * _o3(p, t[0], t[1], t[2], b[i]) < 0
+    return out
+
+
+def _merge_coincident(keys, coords, segments, pairs, locations):
+    """Points of different names at the same computed position as one, named by the first key (a vertex before a
+    crossing): a vertex of a third surface exactly where two edges cross, say. Segments left with one point are
+    dropped. Returns the keys, coordinates, segments, pairs and locations."""
+    if len(coords) < 2:
+        return keys, coords, segments, pairs, locations
+    lowest = canonical_vertices(coords)
+    if np.all(lowest == np.arange(len(coords))):
+        return keys, coords, segments, pairs, locations
+    used, point = np.unique(lowest, return_inverse=True)
+    segments = point[segments]
+    kept = segments[:, 0] != segments[:, 1]
+    return keys[used], coords[used], segments[kept], pairs[kept], locations[kept]
+
+
+def _in_one_plane(plane: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Whether the two faces of each pair (N, 2) are known to lie in one plane (N,) bool."""
+    return plane[pairs[:, 0]] == plane[pairs[:, 1]]
 
 
 def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -840,13 +1002,15 @@ def curves_of(pts: np.ndarray, fcs: np.ndarray, group, canon: np.ndarray, query=
         seg_pairs = np.concatenate([seg_pairs, chord_pairs])
         seg_locs = np.concatenate([seg_locs, chord_locs])
         seg_keys = np.concatenate([seg_keys, chord_keys.reshape(-1, 3)])
+    plane = _plane_representatives(len(fcs), pairs[status == _COPLANAR])
     if len(seg_keys):
-        unique, inverse = unique_rows(seg_keys)
-        segments = inverse.reshape(-1, 2)
+        unique, segments = _one_name_per_point(pts, fcs, canon, plane, seg_keys, seg_pairs, seg_locs)
     else:
         unique, segments = np.zeros((0, 3), np.int64), np.zeros((0, 2), np.int64)
-    unique, coords, segments, seg_pairs, seg_locs = _split_at_triple_points(
-        pts, fcs, canon, unique, _coordinates(pts, fcs, unique), segments, seg_pairs, seg_locs)
+    unique, coords, segments, seg_pairs, seg_locs = _merge_coincident(
+        unique, _coordinates(pts, fcs, unique), segments, seg_pairs, seg_locs)
+    unique, coords, segments, seg_pairs, seg_locs = _merge_coincident(*_split_at_triple_points(
+        pts, fcs, canon, plane, unique, coords, segments, seg_pairs, seg_locs))
     return IntersectionCurves(
         points=coords,
         point_keys=unique,
