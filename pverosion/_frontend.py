@@ -12,7 +12,6 @@ option names and defaults.
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import inspect
 import textwrap
@@ -24,6 +23,7 @@ from typing import Any
 import pyvista as pv
 from vtkmodules.vtkCommonDataModel import vtkImageData, vtkPolyData
 
+from pverosion._progress import filter_bar
 from pverosion.filters.base import ErosionFilter, Param
 from pverosion.kernels.validation import InvalidMeshError
 
@@ -158,31 +158,9 @@ def accessor_method(function: Callable, summary: str) -> Callable:
     return method
 
 
-def _progress(alg: ErosionFilter, enabled: bool):
-    """A context manager showing ``alg``'s progress in a tqdm bar when ``enabled``."""
-    if not enabled:
-        return contextlib.nullcontext()
-
-    @contextlib.contextmanager
-    def bar():
-        from tqdm.auto import tqdm
-
-        with tqdm(total=100, desc=alg.command_name(), unit="%") as shown:
-            def update(caller, _event):
-                shown.update(max(round(100 * caller.GetProgress()) - shown.n, 0))
-
-            tag = alg.AddObserver("ProgressEvent", update)
-            try:
-                yield
-            finally:
-                alg.RemoveObserver(tag)
-
-    return bar()
-
-
 def run_filter(alg: ErosionFilter, *inputs, progress_bar: bool = False) -> pv.DataSet:
     """Run the configured filter ``alg`` on ``inputs`` (one per port); a new PyVista dataset."""
-    with _progress(alg, progress_bar):
+    with filter_bar(alg, enabled=progress_bar):
         return pv.wrap(alg.run(*inputs))
 
 

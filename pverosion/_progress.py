@@ -1,9 +1,9 @@
-"""Progress bars of the front ends, drawn from the step callbacks of the kernels' solvers."""
+"""Progress bars of the Python front ends, all tqdm: one over a filter's progress events, one over a solver's steps."""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from typing import Any
 
 
@@ -34,3 +34,23 @@ def step_bar(total: int, *, label: str, enabled: bool = True) -> Iterator[Callab
                 bar.set_postfix(**postfix())
 
         yield on_step
+
+
+def filter_bar(alg: Any, *, enabled: bool = True):
+    """Context manager: the progress events of VTK algorithm ``alg`` in a tqdm bar (0–100 %) when ``enabled``."""
+    return _filter_bar(alg) if enabled else nullcontext()
+
+
+@contextmanager
+def _filter_bar(alg: Any) -> Iterator[None]:
+    from tqdm.auto import tqdm
+
+    with tqdm(total=100, desc=alg.command_name(), unit="%") as shown:
+        def update(caller, _event) -> None:
+            shown.update(max(round(100 * caller.GetProgress()) - shown.n, 0))
+
+        tag = alg.AddObserver("ProgressEvent", update)
+        try:
+            yield
+        finally:
+            alg.RemoveObserver(tag)
