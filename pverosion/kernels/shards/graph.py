@@ -45,7 +45,7 @@ from scipy.sparse.csgraph import connected_components
 
 from pverosion.kernels.mesh.topology import halfedge_twins
 from pverosion.kernels.shards.voronoi import MAX_FACE_VERTICES, MAX_FACES, cell_polygons, seed_grid
-from pverosion.kernels.spatial.grid import box_items
+from pverosion.kernels.spatial.grid import box_items, grid_over
 from pverosion.kernels.spatial.mesh_query import (
     _needle,
     overlap_grid,
@@ -352,12 +352,12 @@ def _twin_inside(label, edges, count, inside, nf, g_label, f_label):
 
 
 @njit(cache=True)
-def _cell(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, faces, normals, tri_adj, tstart, titems,
-          cstart, citems, cdims, margin, rec_label, rec_val, pair_a, pair_b, pair_cell):
+def _cell(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, faces, normals, tri_adj, tgrid, cgrid,
+          margin, rec_label, rec_val, pair_a, pair_b, pair_cell):
     """Link records and neighbour pairs of cell ``i``; returns (n_records, n_pairs, volume, status).
 
-    ``tstart, titems`` list the triangles meeting each bucket of the seed grid, ``cstart, citems`` those
-    meeting each (x, y) column of it (``cdims`` columns, for :func:`point_inside`). status: 0 ok, 1 polygon
+    ``tgrid`` = (start, items, size, dims) lists the triangles meeting each bucket of a grid from ``lo``,
+    ``cgrid`` likewise those meeting each (x, y) column of one (for :func:`point_inside`). status: 0 ok, 1 polygon
     capacity exceeded, 2 record/pair capacity (the arrays' lengths) exceeded.
     """
     max_rec = rec_label.size
@@ -377,10 +377,12 @@ def _cell(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, 
             for a in range(3):
                 bmin[a] = min(bmin[a], verts[f, m, a])
                 bmax[a] = max(bmax[a], verts[f, m, a])
-    tris = _near_triangles(verts, count, nf, planes, offsets, bmin, bmax, points, faces, normals, lo, size, dims,
+    tstart, titems, tsize, tdims = tgrid
+    cstart, citems, csize, cdims = cgrid
+    tris = _near_triangles(verts, count, nf, planes, offsets, bmin, bmax, points, faces, normals, lo, tsize, tdims,
                            tstart, titems, margin)
     # a cell the surface does not cross is inside or outside as a whole, like its seed (no surface between them)
-    if tris.size == 0 and not point_inside(seeds[i], points, faces, lo, size, cdims, cstart, citems):
+    if tris.size == 0 and not point_inside(seeds[i], points, faces, lo, csize, cdims, cstart, citems):
         return 0, 0, 0.0, 0
     nrec = 0
     npair = 0
@@ -395,7 +397,7 @@ def _cell(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, 
         acc[:] = 0.0
         state = True
         if tris.size > 0:  # later vertices follow from the parity of the crossings along the edges
-            state = point_inside(verts[f, 0], points, faces, lo, size, cdims, cstart, citems)
+            state = point_inside(verts[f, 0], points, faces, lo, csize, cdims, cstart, citems)
         nt = 0  # the triangles that reach the face's plane: only they can cross its edges or cut it
         for q in range(tris.size):
             if _reaches_plane(tris[q], n, offsets[f], points, faces, margin):
@@ -513,7 +515,7 @@ def _cell(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, 
 
 @njit(cache=True, parallel=True)
 def _batch(first, last, rec_label, rec_val, pair_a, pair_b, pair_cell, seeds, start, order, dims, size, lo, hi, bound_n,
-           bound_d, points, faces, normals, tri_adj, tstart, titems, cstart, citems, cdims, margin):
+           bound_d, points, faces, normals, tri_adj, tgrid, cgrid, margin):
     """Cells first..last-1 into rows 0..last-first-1 of the record and pair slots (reused from batch to batch).
 
     Returns the number of records and of pairs, the volume and the status of every cell.
@@ -526,7 +528,7 @@ def _batch(first, last, rec_label, rec_val, pair_a, pair_b, pair_cell, seeds, st
     for q in prange(nb):
         nrec[q], npair[q], volume[q], status[q] = _cell(
             first + q, seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, faces, normals, tri_adj,
-            tstart, titems, cstart, citems, cdims, margin, rec_label[q], rec_val[q], pair_a[q], pair_b[q], pair_cell[q])
+            tgrid, cgrid, margin, rec_label[q], rec_val[q], pair_a[q], pair_b[q], pair_cell[q])
     return nrec, npair, volume, status
 
 
@@ -613,12 +615,13 @@ def build_shards(seeds: np.ndarray, points: np.ndarray, faces: np.ndarray, *, pr
     start, order, dims, size = seed_grid(seeds, lo, hi)
     bound_n, bound_d = _bounding_planes(points, margin=margin)
     tri_adj = np.where(partner >= 0, partner // 3, -1).reshape(-1, 3)
-    # the triangles meeting each bucket of the seed grid, and each (x, y) column of it (for the +z ray)
-    tstart, titems = overlap_grid(points, faces, lo, np.full(3, size), dims, margin)
-    cdims = np.array([dims[0], dims[1], 1])
-    cstart, citems = overlap_grid(points, faces, lo, np.array([size, size, hi[2] - lo[2]]), cdims, margin)
+    # the triangles meeting each bucket of a grid, and each (x, y) column of a finer one (for the +z ray);
+    # buckets finer than the seed grid's (down to half a mean edge) list fewer triangles far from the query
+    edge = float(np.linalg.norm(points[faces[:, 1]] - points[faces[:, 0]], axis=1).mean())
+    tgrid = _triangle_grid(points, faces, lo, hi, min(size, max(size / 2, edge / 2)), margin, column=False)
+    cgrid = _triangle_grid(points, faces, lo, hi, min(size, max(size / 8, edge / 2)), margin, column=True)
     args = (seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, faces, unit_normals(points, faces),
-            tri_adj, tstart, titems, cstart, citems, cdims, margin)
+            tri_adj, tgrid, cgrid, margin)
     n = len(seeds)
     recs, vals, pairs, volume = [], [], [], np.zeros(n)
 
@@ -652,6 +655,19 @@ def build_shards(seeds: np.ndarray, points: np.ndarray, faces: np.ndarray, *, pr
     graph = _assemble(seeds, volume, np.concatenate(recs), np.concatenate(vals), np.concatenate(pairs), box=(lo, hi))
     graph.mesh_points, graph.mesh_faces = points, faces
     return graph
+
+
+def _triangle_grid(points: np.ndarray, faces: np.ndarray, lo: np.ndarray, hi: np.ndarray, size: float, margin: float,
+                   *, column: bool) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """(start, items, size, dims) of an :func:`overlap_grid` of cubes of edge ``size`` from ``lo`` covering ``hi``,
+    or of (x, y) columns of that edge spanning the whole height when ``column``."""
+    dims = grid_over(lo, hi, size)
+    edges = np.full(3, size)
+    if column:
+        dims[2] = 1
+        edges[2] = hi[2] - lo[2]
+    start, items = overlap_grid(points, faces, lo, edges, dims, margin)
+    return start, items, size, dims
 
 
 def _bounding_planes(points: np.ndarray, *, directions: int = 64, margin: float) -> tuple[np.ndarray, np.ndarray]:

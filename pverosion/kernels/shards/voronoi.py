@@ -190,6 +190,10 @@ def _clip(verts, edges, count, label, nf, n, d, new_label, scratch):
 def seed_grid(seeds: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Bucket the seeds on a uniform grid of about one seed per bucket.
 
+    When the seeds fill less than half of the box's buckets (seeds inside a
+    mesh, say), the buckets are made finer, to up to 8 times as many, so that
+    the occupied ones hold about one seed each.
+
     Returns
     -------
     start : numpy.ndarray of int64, shape (n_buckets + 1,)
@@ -200,20 +204,42 @@ def seed_grid(seeds: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.nda
         Bucket edge.
     """
     extent = hi - lo
+    seeds = np.ascontiguousarray(seeds, dtype=np.float64)
+    lo = np.asarray(lo, np.float64)
     size = float((np.prod(extent) / max(len(seeds), 1)) ** (1.0 / 3.0))
     dims = grid_over(lo, hi, size)
-    start, order = bucket_points(np.ascontiguousarray(seeds, dtype=np.float64), np.asarray(lo, np.float64), size, dims)
+    start, order = bucket_points(seeds, lo, size, dims)
+    occupied = np.count_nonzero(np.diff(start)) / (len(start) - 1)
+    if occupied < 0.5:  # seeds filling part of the box (e.g. the inside of a mesh): finer, to their density
+        size *= max(occupied ** (1.0 / 3.0), 0.5)
+        dims = grid_over(lo, hi, size)
+        start, order = bucket_points(seeds, lo, size, dims)
     return start, order, dims, size
 
 
 @njit(cache=True)
-def _max_radius2(verts, count, nf, p):
+def _extent(verts, count, nf, p, box):
+    """Squared distance from ``p`` to the cell's farthest vertex; writes the cell's bounding box to ``box`` (2, 3)."""
     r2 = 0.0
+    box[0] = np.inf
+    box[1] = -np.inf
     for f in range(nf):
         for m in range(count[f]):
             d = (verts[f, m, 0] - p[0]) ** 2 + (verts[f, m, 1] - p[1]) ** 2 + (verts[f, m, 2] - p[2]) ** 2
             r2 = max(r2, d)
+            for a in range(3):
+                box[0, a] = min(box[0, a], verts[f, m, a])
+                box[1, a] = max(box[1, a], verts[f, m, a])
     return r2
+
+
+@njit(cache=True, inline="always")
+def _misses(box, n, d):
+    """Whether the plane n.x = d leaves the box (2, 3) on its n.x <= d side."""
+    s = 0.0
+    for a in range(3):
+        s += max(n[a] * box[0, a], n[a] * box[1, a])
+    return s <= d
 
 
 @njit(cache=True)
@@ -244,12 +270,15 @@ def cell_polygons(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d):
     p = seeds[i]
     n = np.empty(3)
     scratch = _scratch()
-    r2 = _max_radius2(verts, count, nf, p)
+    box = np.empty((2, 3))
+    r2 = _extent(verts, count, nf, p, box)
     ci = min(max(int((p[0] - lo[0]) / size), 0), dims[0] - 1)
     cj = min(max(int((p[1] - lo[1]) / size), 0), dims[1] - 1)
     ck = min(max(int((p[2] - lo[2]) / size), 0), dims[2] - 1)
     ring = 0
     max_ring = max(dims[0], max(dims[1], dims[2]))
+    cand = np.empty(64, np.int64)
+    cand_d2 = np.empty(64)
     while ring <= max_ring:
         if ring == 2:
             for h in range(bound_d.size):
@@ -259,9 +288,11 @@ def cell_polygons(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d):
                     if nf <= 0:  # nothing of the cell is within the bounds (0), or capacity exceeded (-1)
                         return verts, edges, count, label, nf
                     if cut:
-                        r2 = _max_radius2(verts, count, nf, p)
+                        r2 = _extent(verts, count, nf, p, box)
         if ring >= 2 and ((ring - 1) * size) ** 2 > 4.0 * r2:
             break
+        # the seeds of this ring's buckets that may cut, nearest first: the cell shrinks fastest that way
+        nc = 0
         for dk in range(-ring, ring + 1):
             kk = ck + dk
             if kk < 0 or kk >= dims[2]:
@@ -291,18 +322,33 @@ def cell_polygons(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d):
                         j = order[q]
                         if j == i:
                             continue
-                        n[0] = seeds[j, 0] - p[0]
-                        n[1] = seeds[j, 1] - p[1]
-                        n[2] = seeds[j, 2] - p[2]
-                        dist2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2]
+                        dist2 = (seeds[j, 0] - p[0]) ** 2 + (seeds[j, 1] - p[1]) ** 2 + (seeds[j, 2] - p[2]) ** 2
                         if dist2 >= 4.0 * r2:
                             continue
-                        d = 0.5 * (n[0] * (seeds[j, 0] + p[0]) + n[1] * (seeds[j, 1] + p[1])
-                                   + n[2] * (seeds[j, 2] + p[2]))
-                        nf, cut = _clip(verts, edges, count, label, nf, n, d, j, scratch)
-                        if nf <= 0:  # capacity exceeded (-1), or nothing left of a cell the bounds cut off its seed (0)
-                            return verts, edges, count, label, nf
-                        if cut:
-                            r2 = _max_radius2(verts, count, nf, p)
+                        if nc == cand.shape[0]:
+                            grown = np.empty(2 * nc, np.int64)
+                            grown[:nc] = cand
+                            cand = grown
+                            grown_d = np.empty(2 * nc)
+                            grown_d[:nc] = cand_d2
+                            cand_d2 = grown_d
+                        cand[nc] = j
+                        cand_d2[nc] = dist2
+                        nc += 1
+        for q in np.argsort(cand_d2[:nc], kind="mergesort"):
+            j = cand[q]
+            if cand_d2[q] >= 4.0 * r2:
+                break
+            n[0] = seeds[j, 0] - p[0]
+            n[1] = seeds[j, 1] - p[1]
+            n[2] = seeds[j, 2] - p[2]
+            d = 0.5 * (n[0] * (seeds[j, 0] + p[0]) + n[1] * (seeds[j, 1] + p[1]) + n[2] * (seeds[j, 2] + p[2]))
+            if _misses(box, n, d):
+                continue
+            nf, cut = _clip(verts, edges, count, label, nf, n, d, j, scratch)
+            if nf <= 0:  # capacity exceeded (-1), or nothing left of a cell the bounds cut off its seed (0)
+                return verts, edges, count, label, nf
+            if cut:
+                r2 = _extent(verts, count, nf, p, box)
         ring += 1
     return verts, edges, count, label, nf
