@@ -283,7 +283,7 @@ def cell_polygons(i, seeds, start, order, dims, size, lo, hi, bound_n, bound_d):
         if ring == 2:
             for h in range(bound_d.size):
                 dist = bound_d[h] - (bound_n[h, 0] * p[0] + bound_n[h, 1] * p[1] + bound_n[h, 2] * p[2])
-                if dist < 0.0 or dist * dist < r2:
+                if (dist < 0.0 or dist * dist < r2) and not _misses(box, bound_n[h], bound_d[h]):
                     nf, cut = _clip(verts, edges, count, label, nf, bound_n[h], bound_d[h], -7 - h, scratch)
                     if nf <= 0:  # nothing of the cell is within the bounds (0), or capacity exceeded (-1)
                         return verts, edges, count, label, nf
