@@ -4,9 +4,9 @@ The scene of ``bench_hydraulic.py``'s bunny: the scan (``../shared/data/bunny.pl
 closed) in a tank, a block of ~17.7k particles dropped on it, and a water source picked on
 its back. The worker thread steps the solver; the main thread calls
 :meth:`pverosion.live.LiveSession.update_view` every ``TIMER_MS`` milliseconds (at once when
-the last call overran), as a window's timer does, and renders off-screen. A *view update* is one rendered frame that shows an iteration the
-previous frame did not (its ``shown_step`` differs), so the rate cannot exceed the solver's
-iteration rate. The JSON also gives the milliseconds (wall and CPU) of one iteration with the
+the last call overran), as a window's timer does, and renders off-screen. A *view update* is
+one rendered frame that shows a later iteration than every frame before (its ``shown_step``),
+so the rate cannot exceed the solver's iteration rate. The JSON also gives the milliseconds (wall and CPU) of one iteration with the
 view idle (the peer, measured in the same run on as many kernel threads as the worker), of one
 update with the worker running and stopped (moving the arrays and rendering alone), and the load
 average before and after.
@@ -137,7 +137,8 @@ def main() -> None:
         session.update_view()
         alone.append(time.perf_counter() - clock)
     print(json.dumps({
-        "worker_threads": session.threads, "vertices": session.mesh.n_points, "faces": session.mesh.n_cells, "particles": session.particles.n_points,
+        "worker_threads": session.threads, "vertices": session.mesh.n_points, "faces": session.mesh.n_cells,
+        "particles": session.particles.n_points,
         "seconds": round(elapsed, 2), "view_updates": updates, "iterations": steps,
         "iterations_net": session.steps - step0,
         "view_updates_per_s": round(updates / elapsed, 2), "iterations_per_s": round(steps / elapsed, 2),
