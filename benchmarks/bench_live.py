@@ -1,15 +1,15 @@
 """Live hydraulic erosion: view updates per second while the solver steps in the background.
 
 The scene of ``bench_hydraulic.py``'s bunny: the scan (``../shared/data/bunny.ply``, holes
-closed) in a tank, a block of ~17.7k particles dropped on it, and a water source picked on
-its back. The worker thread steps the solver; the main thread calls
-:meth:`pverosion.live.LiveSession.update_view` every ``TIMER_MS`` milliseconds (at once when
-the last call overran), as a window's timer does, and renders off-screen. A *view update* is
-one rendered frame that shows a later iteration than every frame before (its ``shown_step``),
-so the rate cannot exceed the solver's iteration rate. The JSON also gives the milliseconds (wall and CPU) of one iteration with the
-view idle (the peer, measured in the same run on as many kernel threads as the worker), of one
-update with the worker running and stopped (moving the arrays and rendering alone), and the load
-average before and after.
+closed) in a tank, a block of ~17.7k particles dropped on it, and a water source picked on its
+back. The worker thread steps the solver; the main thread calls
+:meth:`pverosion.live.LiveSession.update_view` every ``TIMER_MS`` milliseconds (at once when the
+last call overran), as a window's timer does, and renders off-screen. A *view update* is one
+rendered frame that shows a later iteration than every frame before (its ``shown_step``), so the
+rate cannot exceed the solver's iteration rate. The JSON also gives the milliseconds (wall and
+CPU) of one iteration with the view idle (the peer, measured in the same run on as many kernel
+threads as the worker), of one update with the worker running and stopped (moving the arrays and
+rendering alone), and the load average before and after.
 
 Where the time goes (Linux: ``/proc/thread-self/schedstat``): per iteration, the worker thread's
 CPU time, its wait for a free core (runnable, not running) and the rest of its wall time, spent
