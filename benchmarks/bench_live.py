@@ -17,7 +17,7 @@ blocked (on the interpreter lock, say); per update, the CPU time of the process'
 (the main thread and the software rasterizer's; with ``--threads`` > 1 the kernels' helper threads
 too), and the cores the process used on average.
 
-Usage: ``python benchmarks/bench_live.py [--seconds 20] [--warmup 10] [--particles 17700]``
+Usage: ``python benchmarks/bench_live.py [--seconds 20] [--warmup 10] [--particles 17700] [--threads N]``
 """
 
 from __future__ import annotations
