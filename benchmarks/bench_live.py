@@ -5,8 +5,9 @@ closed) in a tank, a block of ~17.7k particles dropped on it, and a water source
 back. The worker thread steps the solver; the main thread calls
 :meth:`pverosion.live.LiveSession.update_view` every ``TIMER_MS`` milliseconds (at once when the
 last call overran), as a window's timer does, and renders off-screen. A *view update* is one
-rendered frame that shows a later iteration than every frame before (its ``shown_step``), so the
-rate cannot exceed the solver's iteration rate. The JSON also gives the milliseconds (wall and
+rendered frame that shows a later simulated time than every frame before (its ``shown_time``: an
+iteration's end, or the water between two of the fluid's substeps on the surface of the iteration
+before), so the rate cannot exceed the solver's substep rate. The JSON also gives the milliseconds (wall and
 CPU) of one iteration with the view idle (the peer, measured in the same run on as many kernel
 threads as the worker), of one update with the worker running and stopped (moving the arrays and
 rendering alone), and the load average before and after.
@@ -102,7 +103,7 @@ def main() -> None:
         alone_it.append(time.perf_counter() - clock)
         alone_cpu.append(time.process_time() - cpu_clock)
     session.update_view()
-    shown, step0 = session.steps, session.steps
+    shown, step0 = session.shown_time, session.steps
     updates, update_times, done = 0, [], []
     worker_id: list[int] = []
 
@@ -121,9 +122,10 @@ def main() -> None:
         clock = time.perf_counter()
         if session.update_view():  # rendered the newest published state
             update_times.append(time.perf_counter() - clock)
-            step = session.shown_step
-            updates += step > shown  # a frame counts only when it shows a later iteration than any before
-            shown = max(shown, step)
+            # a frame counts only when it shows a later simulated time (an iteration's end, or the water
+            # between two of its substeps) than any frame before
+            updates += session.shown_time > shown
+            shown = max(shown, session.shown_time)
     elapsed = time.perf_counter() - start
     cpu = time.process_time() - cpu_start
     worker_total = _sched(worker_id[0]) if worker_id else None  # the worker started after cpu_start
