@@ -4,6 +4,9 @@
 iteration at a time in a worker thread; after an iteration it publishes a
 copy of the state (with vertex normals, so the view computes nothing) if
 the view has taken the previous one, and always when it stops. The
+hydraulic stage also publishes the water between the fluid's substeps (on
+the surface of the iteration before), so the water moves at the substep
+rate. The
 plotter's timer (or a script calling :meth:`LiveSession.update_view`)
 moves the shown arrays to the newest copy and renders, at its own pace. Picking a point on
 the surface (right click or the ``P`` key in a window, :meth:`LiveSession.pick`
@@ -88,6 +91,10 @@ class LiveSession:
         View updates that showed a new state.
     shown_step : int
         Iteration the view shows.
+    shown_time : float
+        Simulated time the view shows, in iterations: ``shown_step``, plus the
+        fraction of the next iteration's fluid substeps done when the view
+        shows the water between substeps.
     """
 
     def __init__(self, mesh: pv.PolyData, *, stage: str = "hydraulic", plotter: pv.Plotter | None = None,
@@ -127,6 +134,7 @@ class LiveSession:
         self.error: BaseException | None = None
         self.updates = 0
         self.shown_step = 0
+        self.shown_time = 0.0
         self.plotter = plotter if plotter is not None else pv.Plotter()
         self.mesh = pv.PolyData()
         self.particles = pv.PolyData()
@@ -151,6 +159,7 @@ class LiveSession:
             self._gravity = np.asarray(self.solver.fluid.params.gravity, dtype=np.float64)
             self._layer = Emitter(position=(0.0, 0.0, 0.0), direction=tuple(self._gravity),
                                   radius=self.source_radius, rate=1.0).lattice(2.0 * self.radius)
+            self.solver.fluid.on_substep = self._between_substeps
         else:
             self.solver = WeatheringSolver(points, faces, erodibility=self._brushed, **self._options)
         self._version = 0
@@ -222,15 +231,33 @@ class LiveSession:
             finally:
                 self._flush()
 
-    def _publish(self) -> None:
-        """Copy the state the view needs, with the vertex normals for smooth shading, and swap it in whole."""
+    def _publish(self, cloud: pv.PolyData | None = None, time: float | None = None) -> None:
+        """Copy the state the view needs, with the vertex normals for smooth shading, and swap it in whole.
+
+        ``cloud`` and ``time`` (in iterations) give the water between two substeps; the surface is then the
+        last iteration's, copied again only if the view had not shown it.
+        """
         s = self.solver
-        cloud = particles_polydata(s) if self.stage == "hydraulic" else pv.PolyData()
-        normals = vertex_normals(s.points, s.faces)  # here, not in the view's pipeline: the render thread only draws
+        if cloud is None:
+            cloud = particles_polydata(s) if self.stage == "hydraulic" else pv.PolyData()
         self._version += 1
+        if time is not None and not self._stale:  # the surface shown is current: only the water is new
+            self._state = (self._version, *self._state[1:5], cloud, s.step_count, self._state[7], time)
+            return
+        normals = vertex_normals(s.points, s.faces)  # here, not in the view's pipeline: the render thread only draws
         self._state = (self._version, s.points.copy(), s.faces.copy(), s.erosion_depth(), s.ids.copy(), cloud,
-                       s.step_count, normals)
+                       s.step_count, normals, float(s.step_count) if time is None else time)
         self._stale = False
+
+    def _between_substeps(self, done: int, positions: np.ndarray, velocities: np.ndarray, ids: np.ndarray) -> None:
+        """The fluid's substep hook: hand the view the water if it has taken the last state."""
+        if self._state[0] != self._shown:
+            return
+        cloud = pv.PolyData(positions.copy())
+        cloud["velocity"] = velocities.copy()
+        cloud["speed"] = np.linalg.norm(velocities, axis=1)
+        cloud["particle_id"] = ids
+        self._publish(cloud, self.solver.step_count + done / self.solver.fluid.params.substeps)
 
     def _flush(self) -> None:
         """Publish the last iteration if the view had not taken the one before when it ended."""
@@ -356,9 +383,10 @@ class LiveSession:
         state = self._state  # replaced whole by the worker, never changed
         if state[0] == self._shown:
             return False
-        version, points, faces, depth, ids, cloud, step, normals = state
+        version, points, faces, depth, ids, cloud, step, normals, time = state
         self._shown = version
         self.shown_step = int(step)
+        self.shown_time = time
         if self._faces is not None and np.array_equal(self._faces, faces):
             self.mesh.points = points  # same triangles: move the points only
         else:

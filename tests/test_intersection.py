@@ -70,6 +70,25 @@ def test_pushed_vertex_is_detected_and_order_only_affects_speed():
     assert not intersecting_faces(points, faces, query=~fan & ~hits).any()
 
 
+def test_a_local_query_finds_exactly_the_pairs_with_its_faces():
+    # two overlapping spheres: intersecting pairs all along a circle
+    a = icosphere(1.0, 3)
+    b = icosphere(1.0, 3).translate((1.2, 0.1, 0.05))
+    points = np.vstack([a.points, b.points])
+    faces = np.vstack([a.regular_faces, b.regular_faces + a.n_points])
+    pairs = intersecting_pairs(points, faces)
+    assert len(pairs)
+    centres = points[faces].mean(axis=1)
+    for centre in ((0.6, 0.8, 0.0), (0.6, 0.0, 0.8), (-1.0, 0.0, 0.0), (2.2, 0.1, 0.0), (0.6, -0.5, -0.6)):
+        query = np.linalg.norm(centres - centre, axis=1) < 0.5
+        expected = np.zeros(len(faces), bool)
+        for f, g in pairs:
+            if query[f] or query[g]:
+                expected[[f, g]] = True
+        assert np.array_equal(intersecting_faces(points, faces, query=query), expected)
+    assert not intersecting_faces(points, faces, query=np.zeros(len(faces), bool)).any()
+
+
 def test_bunny_scan_does_not_self_intersect(bunny):
     assert not intersecting_faces(bunny.points, bunny.regular_faces).any()
 

@@ -79,6 +79,44 @@ def test_water_erodes_where_it_falls_and_nowhere_else():
         session.plotter.close()
 
 
+def test_the_view_shows_the_water_between_substeps_on_the_last_surface():
+    mesh = load_cube(resolution=8)
+    session = pverosion.interactive(mesh, stage="hydraulic", off_screen=True, window_size=(200, 200))
+    try:
+        assert session.solver.fluid.params.substeps == 2
+        session.pick((0.4, 0.4, 1.0))
+        session.step(4)
+        session.update_view()
+        assert session.shown_time == session.shown_step == 4
+        surface = session.mesh.points.copy()
+        water = dict(zip(session.particles["particle_id"], session.particles.points.copy()))
+        assert water
+        hook = session.solver.fluid.on_substep
+        seen = []
+
+        def show(done, positions, velocities, ids):  # the view takes the state the hook publishes
+            hook(done, positions, velocities, ids)
+            assert session.update_view(render=False)
+            seen.append((session.shown_time, session.mesh.points.copy(), session.particles.points.copy(),
+                         session.particles["particle_id"].copy(), positions.copy(), ids.copy()))
+
+        session.solver.fluid.on_substep = show
+        session.step(1)
+        assert len(seen) == 1
+        shown_time, points, particles, shown_ids, positions, ids = seen[0]
+        assert shown_time == 4.5
+        np.testing.assert_array_equal(points, surface)  # the surface of the iteration before
+        np.testing.assert_array_equal(particles, positions)  # the water after the first substep
+        np.testing.assert_array_equal(shown_ids, ids)
+        common = [k for k, i in enumerate(ids) if i in water]
+        assert common and all(not np.array_equal(particles[k], water[ids[k]]) for k in common)  # it moved
+        assert session.update_view(render=False) and session.shown_time == 5.0  # then the iteration's end
+        assert not np.array_equal(session.particles.points, particles) or session.particles.n_points != len(particles)
+    finally:
+        session.stop()
+        session.plotter.close()
+
+
 def test_weathering_brush_erodes_only_inside_it(tmp_path):
     mesh = load_cube(resolution=12)
     session = pverosion.interactive(mesh, stage="weather", off_screen=True, window_size=(400, 400),

@@ -279,3 +279,33 @@ def test_open_scan_erodes_like_the_closed_model():
         moved[normalization] = np.linalg.norm(mine - theirs, axis=1) / np.linalg.norm(theirs, axis=1)
     assert moved["scale_free"].max() < 0.05
     assert moved["paper"].max() > 0.2  # the rim sets the paper's normalisation
+
+
+def test_guard_query_after_a_collapse_holds_every_new_intersection():
+    """After an edge collapse the guard checks only faces that are not faces of the restart point; a vertex
+    then pushed through the far side is still found, exactly as by a check of the whole mesh."""
+    from conftest import icosphere
+
+    from pverosion.kernels.solver.mesh_evolution import _new_faces
+
+    sphere = icosphere(1.0, 3)
+    points, faces = np.asarray(sphere.points, dtype=np.float64), sphere.regular_faces.astype(np.int64)
+    ids = np.arange(len(points))
+    a, b = faces[0, 0], faces[0, 1]  # collapse b into a: its faces go, the rest follow a
+    merged = np.where(faces == b, a, faces)
+    merged = merged[(merged[:, 0] != merged[:, 1]) & (merged[:, 1] != merged[:, 2]) & (merged[:, 0] != merged[:, 2])]
+    kept = np.delete(np.arange(len(points)), b)
+    remap = np.full(len(points), -1)
+    remap[kept] = np.arange(len(kept))
+    new_points, new_faces, new_ids = points[kept].copy(), remap[merged], ids[kept]
+    query = _new_faces(points, faces, ids, new_points, new_faces, new_ids)
+    assert query is not None and 0 < query.sum() < len(new_faces) // 4  # the collapsed fan only
+    assert not intersecting_faces(new_points, new_faces, query=query).any()
+    far = int(np.argmax(new_points @ new_points[remap[a]] * -1))  # a vertex on the far side, pushed through
+    new_points[far] *= -1.5
+    query = _new_faces(points, faces, ids, new_points, new_faces, new_ids)
+    hits = intersecting_faces(new_points, new_faces)
+    assert hits.any()
+    assert np.array_equal(intersecting_faces(new_points, new_faces, query=query), hits)
+    # repeated ids (vertices made by a repair) leave the whole mesh to check
+    assert _new_faces(points, faces, ids, new_points, new_faces, np.zeros_like(new_ids)) is None

@@ -671,11 +671,22 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
     local = fcs[order]
     lo, hi, ok, origin, inv_h, _, n_ok = _face_boxes(pts, local)
     hits = np.zeros(len(fcs), bool)
+    local_query = q[order]
+    if query is not None and n_ok:
+        # only faces whose boxes meet the box around the queried faces can meet one: the grid holds just those
+        # (few when the query is local, as after a step that moved the vertices in one place)
+        queried = ok & local_query
+        if queried.any():
+            ql, qh = lo[queried].min(axis=0), hi[queried].max(axis=0)
+            ok = ok & (lo <= qh).all(axis=1) & (hi >= ql).all(axis=1)
+            n_ok = int(np.count_nonzero(ok))
+        else:
+            n_ok = 0
     if n_ok == 0:
         return hits
     size = 4 * n_ok + 1
     grid = _build_grid(lo, hi, ok, origin, inv_h, size)
-    hits[order] = _count_hits(pts, local, lo, hi, ok, q[order], origin, inv_h, *grid, size)
+    hits[order] = _count_hits(pts, local, lo, hi, ok, local_query, origin, inv_h, *grid, size)
     return hits
 
 

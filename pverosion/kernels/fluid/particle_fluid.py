@@ -76,6 +76,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -250,6 +251,13 @@ class ParticleFluid:
     profile : dict or None
         Set it to ``{}`` to collect the seconds per step spent in each of
         :data:`PHASES`.
+    on_substep : callable or None
+        Called as ``on_substep(done, positions, velocities, ids)`` after
+        every substep of a step but its last (after which the step ends and
+        the attributes above hold the particles): ``done`` substeps of the
+        step are done, and the particles come in the step's work order. The
+        arrays are the fluid's work buffers: copy what you keep. A live view
+        uses it to show the water between steps.
 
     Examples
     --------
@@ -315,6 +323,7 @@ class ParticleFluid:
         self.drained_sediment = 0.0
         self.steps = 0
         self.profile: dict[str, list[float]] | None = None
+        self.on_substep: Callable[[int, np.ndarray, np.ndarray, np.ndarray], None] | None = None
 
     @staticmethod
     def _check_domain(domain, radius: float, walls: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -446,8 +455,10 @@ class ParticleFluid:
             work = _Work(n, order, self._last, self._rows[order], self._work_buffers[self._parity])
             _gather(self.positions, self.velocities, work.order, work.x, work.v)
             self._lap(times, "neighbours", clock)
-            for _ in range(self.params.substeps):
+            for k in range(self.params.substeps):
                 self._substep(work, self.dt / self.params.substeps, times)
+                if self.on_substep is not None and k + 1 < self.params.substeps:
+                    self.on_substep(k + 1, work.x, work.v, self.ids[work.order])
             clock = time.perf_counter()
             _scatter(work.order, work.x, work.v, work.touched, self.positions, self.velocities, self.contact_face)
             # the searches go on to the next step as far as their planes cover every face within r

@@ -113,6 +113,36 @@ class _State:
     extra: Any = None
 
 
+def _new_faces(old_points: np.ndarray, old_faces: np.ndarray, old_ids: np.ndarray, points: np.ndarray,
+               faces: np.ndarray, ids: np.ndarray) -> np.ndarray | None:
+    """Faces (F,) bool of a mesh that are not faces of an earlier state of it, matched by input vertex ids.
+
+    A face is old when its vertices' input ids (``ids`` (V,), ``old_ids`` (V0,)) name an earlier face with
+    the same orientation and its vertices sit where they did. None when ids repeat (a repair made new
+    vertices) or are too many to pack a face into one integer.
+    """
+    n_old = len(old_points)
+    if len(ids) == 0 or n_old == 0 or n_old ** 3 >= 2**62:
+        return None
+    where = np.full(int(max(ids.max(), old_ids.max())) + 1, -1, np.int64)
+    where[old_ids] = np.arange(n_old)
+    if np.count_nonzero(where >= 0) != n_old or len(np.unique(ids)) != len(ids):
+        return None
+    source = where[ids]  # each vertex's index in the earlier state, -1 for none
+    kept = source >= 0
+    kept[kept] = np.all(points[kept] == old_points[source[kept]], axis=1)
+    candidate = kept[faces].all(axis=1)
+
+    def keys(tri: np.ndarray) -> np.ndarray:  # one integer per face, the same for any rotation of its corners
+        first = np.argmin(tri, axis=1)[:, None]
+        rotated = np.take_along_axis(tri, (first + np.arange(3)) % 3, axis=1)
+        return (rotated[:, 0] * n_old + rotated[:, 1]) * n_old + rotated[:, 2]
+
+    new = np.ones(len(faces), bool)
+    new[candidate] = ~np.isin(keys(source[faces[candidate]]), keys(old_faces))
+    return new
+
+
 class GuardedMeshSolver(SolverLoop):
     """Base of the vertex-displacement stages: mesh state, improvement, self-intersection guard.
 
@@ -321,12 +351,18 @@ class GuardedMeshSolver(SolverLoop):
         return intersecting_faces(self.points, self.faces, query=query, order=self._order)
 
     def _moved_faces(self) -> np.ndarray | None:
-        """Faces with a vertex moved since the restart point, when no collapse happened since."""
+        """Faces that are not, vertex for vertex, faces of the restart point (None: all faces).
+
+        Two faces kept from the (clean) restart point, with their vertices where they were, still do not
+        meet; only pairs with a moved or new face need a check.
+        """
         clean = self._clean
-        if self._baseline or len(clean.faces) != len(self.faces) or not np.array_equal(clean.faces, self.faces):
+        if self._baseline:
             return None  # a self-intersecting input is always compared whole against its baseline
-        moved = np.any(self.points != clean.points, axis=1)
-        return moved[self.faces].any(axis=1)
+        if len(clean.faces) == len(self.faces) and np.array_equal(clean.faces, self.faces):
+            moved = np.any(self.points != clean.points, axis=1)
+            return moved[self.faces].any(axis=1)
+        return _new_faces(clean.points, clean.faces, clean.ids, self.points, self.faces, self.ids)
 
     def _lap(self, part: str, start: float) -> float:
         """Add the time since ``start`` to :attr:`profile` (when profiling) and restart the clock."""
