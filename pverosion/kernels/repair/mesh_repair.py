@@ -771,15 +771,18 @@ def _corefine(pts, fcs, group, operation) -> RepairResult:
     front = np.zeros((n_groups, len(reps)), np.int64)
     fcs_group = np.zeros(len(fcs), np.int64) if group is None else np.asarray(group)
     pair_group = fcs_group[curves.pairs]
+    rows = []  # the patches whose winding number of operand k is cast, for every k
     for k in range(n_groups):
         # an operand's own winding number in front of its faces is 0 unless it meets itself (or it is a repair)
         if group is not None and not np.any((pair_group[:, 0] == k) & (pair_group[:, 1] == k)):
-            rows = own != k
+            rows.append(np.flatnonzero(own != k))
         else:
-            rows = np.ones(len(reps), bool)
-        winding, down = _patch_windings(all_points, faces, source_group, reps[rows],
-                                        np.full(np.count_nonzero(rows), k))
-        front[k, rows] = winding - (down & (own[rows] == k))
+            rows.append(np.arange(len(reps)))
+    # the rays of all operands at once: one grid of columns over the faces
+    winding, down = _patch_windings(all_points, faces, source_group, reps[np.concatenate(rows)],
+                                    np.repeat(np.arange(n_groups), [len(r) for r in rows]))
+    cast = np.repeat(np.arange(n_groups), [len(r) for r in rows]), np.concatenate(rows)
+    front[cast] = winding - (down & (own[cast[1]] == cast[0]))
     back = front + (np.arange(n_groups)[:, None] == own)
     lowest = np.ones(len(reps), bool)
     if len(overlaps):  # patches on coplanar overlaps: the winding numbers across every face lying there
