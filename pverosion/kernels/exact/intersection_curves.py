@@ -193,17 +193,12 @@ def _crossing_in(p, tri, a, b, side_b):
 @njit(cache=True)
 def _case(s):
     """Index into CASES of a triangle whose vertices lie on the sides ``s`` of the other plane."""
-    digits = np.empty(3, np.int64)
+    low, high, total = 2, 0, 0
     for k in range(3):
         a, b = s[k], s[(k + 1) % 3]
-        if a * b < 0:
-            digits[k] = 2
-        elif a == 0 or b == 0:
-            digits[k] = 1
-        else:
-            digits[k] = 0
-    digits.sort()
-    code = digits[0] * 100 + digits[1] * 10 + digits[2]
+        digit = 2 if a * b < 0 else (1 if a == 0 or b == 0 else 0)
+        low, high, total = min(low, digit), max(high, digit), total + digit
+    code = low * 100 + (total - low - high) * 10 + high  # the digits in ascending order
     for i, c in enumerate((0, 1, 2, 11, 12, 22, 111, 112, 122, 222)):
         if c == code:
             return i
@@ -212,19 +207,19 @@ def _case(s):
 
 @njit(cache=True)
 def _ends(s):
-    """Ends of a triangle's interval on the other plane: (n, kind (0 vertex / 1 edge), index) x up to 2."""
-    kinds = np.zeros(3, np.int64)
-    index = np.zeros(3, np.int64)
+    """Ends of a triangle's interval on the other plane: their number n and each end's 3 * kind (0 vertex / 1 edge)
+    + index, packed 3 bits an end (end e: ``(ends >> 3 * e) & 7``); no arrays, as this runs for every pair."""
+    ends = 0
     n = 0
     for k in range(3):
         if s[k] == 0:
-            kinds[n], index[n] = 0, k
+            ends |= k << (3 * n)
             n += 1
     for k in range(3):
         if s[k] * s[(k + 1) % 3] < 0:
-            kinds[n], index[n] = 1, k
+            ends |= (3 + k) << (3 * n)
             n += 1
-    return n, kinds, index
+    return n, ends
 
 
 @njit(cache=True)
@@ -278,6 +273,12 @@ def _is_corner(canon, tri, v):
     return canon[tri[0]] == v or canon[tri[1]] == v or canon[tri[2]] == v
 
 
+@njit(cache=True, inline="always")
+def _side(p, t, v):
+    """Side of vertex ``v`` on the plane of face ``t`` (3,): 0 when it is a corner of ``t``."""
+    return 0 if v == t[0] or v == t[1] or v == t[2] else _o3(p, t[0], t[1], t[2], v)
+
+
 @njit(cache=True)
 def _classify(p, faces, canon, f, g, keys, locs, cases):
     """Intersection of faces f and g: its status, and for a segment the keys (2, 3) and locations (2, 2) of its
@@ -285,14 +286,12 @@ def _classify(p, faces, canon, f, g, keys, locs, cases):
     tf, tg = faces[f], faces[g]
     if _apart_in_projection(p, tf, tg):
         return _APART
-    sf = np.empty(3, np.int64)
-    sg = np.empty(3, np.int64)
+    # the sides of f's vertices on g's plane and of g's on f's (a shared vertex lies in both planes)
+    sf = (_side(p, tg, tf[0]), _side(p, tg, tf[1]), _side(p, tg, tf[2]))
+    sg = (_side(p, tf, tg[0]), _side(p, tf, tg[1]), _side(p, tf, tg[2]))
     shared = 0
     for k in range(3):
-        own_f = tf[k] == tg[0] or tf[k] == tg[1] or tf[k] == tg[2]  # a shared vertex lies in both planes
-        sf[k] = 0 if own_f else _o3(p, tg[0], tg[1], tg[2], tf[k])
-        sg[k] = 0 if tg[k] == tf[0] or tg[k] == tf[1] or tg[k] == tf[2] else _o3(p, tf[0], tf[1], tf[2], tg[k])
-        shared += own_f
+        shared += tf[k] == tg[0] or tf[k] == tg[1] or tf[k] == tg[2]
     cases[0], cases[1] = _case(sf), _case(sg)
     if sf[0] == 0 and sf[1] == 0 and sf[2] == 0:
         return _COPLANAR
@@ -308,10 +307,11 @@ def _classify(p, faces, canon, f, g, keys, locs, cases):
     for side in range(2):  # ends of f's interval located on g, then ends of g's interval located on f
         tri, other, s = (tf, tg, sf) if side == 0 else (tg, tf, sg)
         axis, orientation = (axis_g, orient_g) if side == 0 else (axis_f, orient_f)
-        n, kinds, index = _ends(s)
+        n, ends = _ends(s)
         for e in range(n):
-            k = index[e]
-            if kinds[e] == 0:
+            end = (ends >> (3 * e)) & 7
+            k = end % 3
+            if end < 3:
                 own = k
                 there = _vertex_in(p, other, axis, orientation, tri[k])
             else:
