@@ -938,15 +938,38 @@ def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return ordered[new], inverse
 
 
+@njit(cache=True)
+def _first_of_equal_rows(bits: np.ndarray) -> np.ndarray:
+    """The lowest index of the rows equal to every row of ``bits`` (V, 3) int64, by an open-addressing hash table
+    (one pass in index order, so the first row of every position is met first)."""
+    n = bits.shape[0]
+    size = 16
+    while size < 2 * n:
+        size *= 2
+    table = np.full(size, -1, np.int64)
+    out = np.empty(n, np.int64)
+    for i in range(n):
+        h = (bits[i, 0] * 0x1E3779B97F4A7C15) ^ (bits[i, 1] * 0x42B2AE3D27D4EB4F) ^ (bits[i, 2] * 0x165667B19E3779F9)
+        slot = (h ^ (h >> 29)) & (size - 1)
+        while True:
+            j = table[slot]
+            if j < 0:
+                table[slot] = i
+                out[i] = i
+                break
+            if bits[j, 0] == bits[i, 0] and bits[j, 1] == bits[i, 1] and bits[j, 2] == bits[i, 2]:
+                out[i] = j
+                break
+            slot = (slot + 1) & (size - 1)
+    return out
+
+
 def canonical_vertices(points: np.ndarray) -> np.ndarray:
-    """The lowest index of the vertices at the position of every vertex (V,): coincident vertices as one."""
-    order = np.lexsort(points.T[::-1])  # stable: the lowest index first among equal rows
-    ordered = points[order]
-    group = np.cumsum(np.r_[True, np.any(ordered[1:] != ordered[:-1], axis=1)]) - 1
-    first = order[np.r_[0, np.flatnonzero(np.diff(group)) + 1]]
-    canon = np.empty(len(points), np.int64)
-    canon[order] = first[group]
-    return canon
+    """The lowest index of the vertices at the position of every vertex (V,): coincident vertices as one
+    (finite coordinates; -0.0 and 0.0 are one position)."""
+    # adding 0.0 turns -0.0 into 0.0, so that equal positions have equal bits
+    bits = np.ascontiguousarray(np.asarray(points, np.float64).reshape(-1, 3) + 0.0).view(np.int64)
+    return _first_of_equal_rows(bits)
 
 
 def intersection_curves(points, faces, *, group=None) -> IntersectionCurves:
