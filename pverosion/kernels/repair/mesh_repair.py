@@ -143,6 +143,44 @@ def _edge_keys(canon: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.minimum(a, b) * n + np.maximum(a, b)
 
 
+@njit(cache=True)
+def _edge_matches(wanted, keys):
+    """Every (i, j) with ``wanted[i] == keys[j]`` (W,) and (K,) int64 >= 0, as two arrays, by a hash table of
+    ``wanted`` (one pass over ``keys`` instead of a sort of them)."""
+    size = 16
+    while size < 2 * wanted.shape[0]:
+        size *= 2
+    table = np.full(size, -1, np.int64)  # the first row of every distinct wanted key
+    chain = np.full(wanted.shape[0], -1, np.int64)  # the next row with the same key
+    last = np.full(size, -1, np.int64)
+    for i in range(wanted.shape[0]):
+        slot = (wanted[i] * 0x1E3779B97F4A7C15 >> 17) & (size - 1)
+        while table[slot] >= 0 and wanted[table[slot]] != wanted[i]:
+            slot = (slot + 1) & (size - 1)
+        if table[slot] < 0:
+            table[slot] = i
+        else:
+            chain[last[slot]] = i
+        last[slot] = i
+    n = 0
+    for phase in range(2):  # count, then fill
+        if phase == 1:
+            rows = np.empty(n, np.int64)
+            cols = np.empty(n, np.int64)
+            n = 0
+        for j in range(keys.shape[0]):
+            slot = (keys[j] * 0x1E3779B97F4A7C15 >> 17) & (size - 1)
+            while table[slot] >= 0 and wanted[table[slot]] != keys[j]:
+                slot = (slot + 1) & (size - 1)
+            i = table[slot]
+            while i >= 0:
+                if phase == 1:
+                    rows[n], cols[n] = i, j
+                n += 1
+                i = chain[i]
+    return rows, cols
+
+
 def _face_points(fcs: np.ndarray, canon: np.ndarray, curves: IntersectionCurves):
     """Every (face, curve point, location on the face) to cut with, sorted by face and point.
 
@@ -157,12 +195,7 @@ def _face_points(fcs: np.ndarray, canon: np.ndarray, curves: IntersectionCurves)
     keys = _edge_keys(canon, fcs)
     on_edge = (loc >= 3) & (loc < 6)
     edge_key = keys[face[on_edge], loc[on_edge] - 3]
-    flat = keys.ravel()
-    order = np.argsort(flat, kind="stable")
-    lo = np.searchsorted(flat[order], edge_key, side="left")
-    count = np.searchsorted(flat[order], edge_key, side="right") - lo
-    rows = np.repeat(np.arange(len(edge_key)), count)
-    slots = order[np.repeat(lo - np.cumsum(count) + count, count) + np.arange(int(count.sum()))]
+    rows, slots = _edge_matches(edge_key, keys.ravel())
     face = np.concatenate([face, slots // 3])
     point = np.concatenate([point, point[on_edge][rows]])
     loc = np.concatenate([loc, 3 + slots % 3])
