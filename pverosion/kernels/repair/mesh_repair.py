@@ -591,11 +591,11 @@ def _radial_twins(points, faces, partner, others):
     return partner
 
 
-def _split_touching(points, faces):
+def _split_touching(points, faces, twins):
     """Vertices and edges where sheets touch split apart (fans and radial pairing, see :func:`_fans`): the new
     points (V', 3), faces (F, 3), the old vertex of every new one (V',), or None when the faces do not pair up
-    into a closed, oriented surface."""
-    partner, others = halfedge_twins(faces, len(points))
+    into a closed, oriented surface. ``twins``: :func:`halfedge_twins` of the faces."""
+    partner, others = twins
     partner = _radial_twins(points, faces, partner, others)
     corner_vertex, count = _fans(faces, partner, len(points))
     if count < 0:
@@ -646,11 +646,12 @@ def mesh_problems(points, faces, *, query=None) -> list[str]:
     return _problems(pts, fcs, query, None)
 
 
-def _problems(pts, fcs, query, shells) -> list[str]:
-    """:func:`mesh_problems` of a validated mesh, with its :func:`_shells` when known."""
+def _problems(pts, fcs, query, shells, twins=None) -> list[str]:
+    """:func:`mesh_problems` of a validated mesh, with its :func:`_shells` and :func:`halfedge_twins` when
+    known."""
     n = len(pts)
     problems = []
-    partner, others = halfedge_twins(fcs, n)
+    partner, others = halfedge_twins(fcs, n) if twins is None else twins
     start = fcs.ravel()
     # every edge in two faces (one other face at every half-edge), the twin running the other way: a valid
     # surface skips the counts below, which name the problems
@@ -710,10 +711,13 @@ def _finalized(result: RepairResult) -> RepairResult:
     # faces of the input left whole were tested against each other when the curves were found: only pairs with
     # a piece of a cut face (it has a curve point) or a face at a split vertex are tested again
     changed = result.on_curve.copy()
-    split = _split_touching(points, faces) if len(faces) else None
+    twins = halfedge_twins(faces, len(points)) if len(faces) else None
+    split = _split_touching(points, faces, twins) if len(faces) else None
     if split is not None:
         points, faces, origin = split
         moved = origin != np.arange(len(origin))
+        if len(origin) != len(result.points) or moved.any():
+            twins = None  # the faces changed
         changed = changed[origin] | moved
         changed[origin[moved]] = True
         result = replace(result, points=points, faces=faces, source_vertex=result.source_vertex[origin],
@@ -723,7 +727,7 @@ def _finalized(result: RepairResult) -> RepairResult:
         shells = shell, volume, area = _shells(points, faces)
         keep = (np.abs(volume) > THIN_SHELL * _diagonal(points) * area)[shell]
         if not keep.all():
-            shells = None
+            shells = twins = None
             used = _used_vertices(faces[keep], len(points))
             new_index = np.full(len(points), -1, np.int64)
             new_index[used] = np.arange(len(used))
@@ -734,7 +738,7 @@ def _finalized(result: RepairResult) -> RepairResult:
             changed = changed[used]
     problems = []
     if len(result.faces):  # empty: nothing left, which is a valid result
-        problems = _problems(result.points, result.faces, changed[result.faces].any(axis=1), shells)
+        problems = _problems(result.points, result.faces, changed[result.faces].any(axis=1), shells, twins)
     if problems:
         raise RepairError("the result would not be a closed, oriented 2-manifold without self-intersections: "
                           + "; ".join(problems))
