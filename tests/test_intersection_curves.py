@@ -178,6 +178,22 @@ def test_self_intersections_of_one_mesh_form_closed_loops():
     assert canonical_vertices(np.array([[0.0, 0, 0], [1, 0, 0], [0.0, 0, 0]])).tolist() == [0, 1, 0]
 
 
+def test_canonical_vertices_are_the_lowest_index_of_every_position():
+    # against a lexicographic sort of the rows; many repeated rows, and -0.0 beside 0.0 (one position)
+    rng = np.random.default_rng(3)
+    points = rng.integers(-2, 3, (5000, 3)).astype(float) * 0.25
+    points[rng.random(5000) < 0.2, 1] *= -1.0  # zeros of either sign
+    order = np.lexsort(points.T[::-1])
+    ordered = points[order]
+    new = np.r_[True, np.any(ordered[1:] != ordered[:-1], axis=1)]
+    first = order[np.flatnonzero(new)]
+    expected = np.empty(len(points), np.int64)
+    expected[order] = first[np.cumsum(new) - 1]
+    assert np.array_equal(canonical_vertices(points), expected)
+    assert canonical_vertices(np.array([[0.0, -0.0, 1.0], [-0.0, 0.0, 1.0]])).tolist() == [0, 0]
+    assert canonical_vertices(np.zeros((0, 3))).shape == (0,)
+
+
 def test_bad_input_is_named():
     with pytest.raises(InvalidMeshError):
         intersection_curves(np.zeros((0, 3)), np.zeros((0, 3), int))

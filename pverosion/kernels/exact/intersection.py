@@ -450,6 +450,7 @@ def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, 
     (apart from a shared vertex): g > f, or with a
     query any g not queried before f. Written to ``out`` as (min, max) from ``n_out`` on when it is large
     enough. Returns the count."""
+    grouped = group.shape[0] > 0
     fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
     for ix in range(fx0, fx1 + 1):
         for iy in range(fy0, fy1 + 1):
@@ -461,9 +462,9 @@ def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, 
                     # with a query: the pairs of queried faces f with any g, each pair once
                     if g == f or (g < f and (query.shape[0] == 0 or query[g])):
                         continue
-                    if cells[e] != key or not _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
+                    if cells[e] != key or (grouped and group[f] == group[g]):
                         continue
-                    if group.shape[0] and group[f] == group[g]:
+                    if not _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
                         continue
                     overlap = True
                     for d in range(3):
@@ -474,8 +475,8 @@ def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, 
                         continue
                     # faces that share a vertex meet beyond it only when neither has its other two vertices on
                     # one side of the other's plane
-                    if (_one_side(points, faces, planes, f, g, shared)
-                            or _one_side(points, faces, planes, g, f, shared)
+                    if ((not _nearly_one_plane(planes, f, g) and (_one_side(points, faces, planes, f, g, shared)
+                                                                  or _one_side(points, faces, planes, g, f, shared)))
                             or _apart_by_a_plane(points, faces, f, g, shared)):
                         continue
                     if n_out < out.shape[0]:
@@ -528,6 +529,15 @@ def _one_side(points, faces, planes, f, g, shared):
         elif d < -tol:
             below += 1
     return above == 3 - shared or below == 3 - shared
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _nearly_one_plane(planes, f, g):
+    """Whether faces f and g lie in nearly one plane (parallel unit normals, offsets within the rounding bounds):
+    :func:`_one_side` would find neither on one side of the other, so the plane tests of
+    :func:`_apart_by_a_plane` come first (skipping :func:`_one_side` only costs speed when it is wrong)."""
+    return (planes[f, 0] * planes[g, 0] + planes[f, 1] * planes[g, 1] + planes[f, 2] * planes[g, 2] > 1.0 - 1e-12
+            and abs(planes[f, 3] - planes[g, 3]) <= planes[f, 4] + planes[g, 4])
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -608,7 +618,9 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
         queried = wanted & ok
         if not queried.any():
             return np.zeros((0, 2), np.int64)
-        ok = ok & np.all(lo <= hi[queried].max(axis=0), axis=1) & np.all(hi >= lo[queried].min(axis=0), axis=1)
+        top, bottom = hi[queried].max(axis=0), lo[queried].min(axis=0)
+        for d in range(3):  # column by column: np.all over rows of three is slow
+            ok &= (lo[:, d] <= top[d]) & (hi[:, d] >= bottom[d])
         n_ok = int(np.count_nonzero(ok))
     if n_ok == 0:
         return np.zeros((0, 2), np.int64)

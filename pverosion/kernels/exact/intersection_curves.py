@@ -193,17 +193,12 @@ def _crossing_in(p, tri, a, b, side_b):
 @njit(cache=True)
 def _case(s):
     """Index into CASES of a triangle whose vertices lie on the sides ``s`` of the other plane."""
-    digits = np.empty(3, np.int64)
+    low, high, total = 2, 0, 0
     for k in range(3):
         a, b = s[k], s[(k + 1) % 3]
-        if a * b < 0:
-            digits[k] = 2
-        elif a == 0 or b == 0:
-            digits[k] = 1
-        else:
-            digits[k] = 0
-    digits.sort()
-    code = digits[0] * 100 + digits[1] * 10 + digits[2]
+        digit = 2 if a * b < 0 else (1 if a == 0 or b == 0 else 0)
+        low, high, total = min(low, digit), max(high, digit), total + digit
+    code = low * 100 + (total - low - high) * 10 + high  # the digits in ascending order
     for i, c in enumerate((0, 1, 2, 11, 12, 22, 111, 112, 122, 222)):
         if c == code:
             return i
@@ -212,19 +207,19 @@ def _case(s):
 
 @njit(cache=True)
 def _ends(s):
-    """Ends of a triangle's interval on the other plane: (n, kind (0 vertex / 1 edge), index) x up to 2."""
-    kinds = np.zeros(3, np.int64)
-    index = np.zeros(3, np.int64)
+    """Ends of a triangle's interval on the other plane: their number n and each end's 3 * kind (0 vertex / 1 edge)
+    + index, packed 3 bits an end (end e: ``(ends >> 3 * e) & 7``); no arrays, as this runs for every pair."""
+    ends = 0
     n = 0
     for k in range(3):
         if s[k] == 0:
-            kinds[n], index[n] = 0, k
+            ends |= k << (3 * n)
             n += 1
     for k in range(3):
         if s[k] * s[(k + 1) % 3] < 0:
-            kinds[n], index[n] = 1, k
+            ends |= (3 + k) << (3 * n)
             n += 1
-    return n, kinds, index
+    return n, ends
 
 
 @njit(cache=True)
@@ -278,6 +273,12 @@ def _is_corner(canon, tri, v):
     return canon[tri[0]] == v or canon[tri[1]] == v or canon[tri[2]] == v
 
 
+@njit(cache=True, inline="always")
+def _side(p, t, v):
+    """Side of vertex ``v`` on the plane of face ``t`` (3,): 0 when it is a corner of ``t``."""
+    return 0 if v == t[0] or v == t[1] or v == t[2] else _o3(p, t[0], t[1], t[2], v)
+
+
 @njit(cache=True)
 def _classify(p, faces, canon, f, g, keys, locs, cases):
     """Intersection of faces f and g: its status, and for a segment the keys (2, 3) and locations (2, 2) of its
@@ -285,14 +286,12 @@ def _classify(p, faces, canon, f, g, keys, locs, cases):
     tf, tg = faces[f], faces[g]
     if _apart_in_projection(p, tf, tg):
         return _APART
-    sf = np.empty(3, np.int64)
-    sg = np.empty(3, np.int64)
+    # the sides of f's vertices on g's plane and of g's on f's (a shared vertex lies in both planes)
+    sf = (_side(p, tg, tf[0]), _side(p, tg, tf[1]), _side(p, tg, tf[2]))
+    sg = (_side(p, tf, tg[0]), _side(p, tf, tg[1]), _side(p, tf, tg[2]))
     shared = 0
     for k in range(3):
-        own_f = tf[k] == tg[0] or tf[k] == tg[1] or tf[k] == tg[2]  # a shared vertex lies in both planes
-        sf[k] = 0 if own_f else _o3(p, tg[0], tg[1], tg[2], tf[k])
-        sg[k] = 0 if tg[k] == tf[0] or tg[k] == tf[1] or tg[k] == tf[2] else _o3(p, tf[0], tf[1], tf[2], tg[k])
-        shared += own_f
+        shared += tf[k] == tg[0] or tf[k] == tg[1] or tf[k] == tg[2]
     cases[0], cases[1] = _case(sf), _case(sg)
     if sf[0] == 0 and sf[1] == 0 and sf[2] == 0:
         return _COPLANAR
@@ -308,10 +307,11 @@ def _classify(p, faces, canon, f, g, keys, locs, cases):
     for side in range(2):  # ends of f's interval located on g, then ends of g's interval located on f
         tri, other, s = (tf, tg, sf) if side == 0 else (tg, tf, sg)
         axis, orientation = (axis_g, orient_g) if side == 0 else (axis_f, orient_f)
-        n, kinds, index = _ends(s)
+        n, ends = _ends(s)
         for e in range(n):
-            k = index[e]
-            if kinds[e] == 0:
+            end = (ends >> (3 * e)) & 7
+            k = end % 3
+            if end < 3:
                 own = k
                 there = _vertex_in(p, other, axis, orientation, tri[k])
             else:
@@ -938,15 +938,38 @@ def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return ordered[new], inverse
 
 
+@njit(cache=True)
+def _first_of_equal_rows(bits: np.ndarray) -> np.ndarray:
+    """The lowest index of the rows equal to every row of ``bits`` (V, 3) int64, by an open-addressing hash table
+    (one pass in index order, so the first row of every position is met first)."""
+    n = bits.shape[0]
+    size = 16
+    while size < 2 * n:
+        size *= 2
+    table = np.full(size, -1, np.int64)
+    out = np.empty(n, np.int64)
+    for i in range(n):
+        h = (bits[i, 0] * 0x1E3779B97F4A7C15) ^ (bits[i, 1] * 0x42B2AE3D27D4EB4F) ^ (bits[i, 2] * 0x165667B19E3779F9)
+        slot = (h ^ (h >> 29)) & (size - 1)
+        while True:
+            j = table[slot]
+            if j < 0:
+                table[slot] = i
+                out[i] = i
+                break
+            if bits[j, 0] == bits[i, 0] and bits[j, 1] == bits[i, 1] and bits[j, 2] == bits[i, 2]:
+                out[i] = j
+                break
+            slot = (slot + 1) & (size - 1)
+    return out
+
+
 def canonical_vertices(points: np.ndarray) -> np.ndarray:
-    """The lowest index of the vertices at the position of every vertex (V,): coincident vertices as one."""
-    order = np.lexsort(points.T[::-1])  # stable: the lowest index first among equal rows
-    ordered = points[order]
-    group = np.cumsum(np.r_[True, np.any(ordered[1:] != ordered[:-1], axis=1)]) - 1
-    first = order[np.r_[0, np.flatnonzero(np.diff(group)) + 1]]
-    canon = np.empty(len(points), np.int64)
-    canon[order] = first[group]
-    return canon
+    """The lowest index of the vertices at the position of every vertex (V,): coincident vertices as one
+    (finite coordinates; -0.0 and 0.0 are one position)."""
+    # adding 0.0 turns -0.0 into 0.0, so that equal positions have equal bits
+    bits = np.ascontiguousarray(np.asarray(points, np.float64).reshape(-1, 3) + 0.0).view(np.int64)
+    return _first_of_equal_rows(bits)
 
 
 def intersection_curves(points, faces, *, group=None) -> IntersectionCurves:

@@ -143,6 +143,44 @@ def _edge_keys(canon: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.minimum(a, b) * n + np.maximum(a, b)
 
 
+@njit(cache=True)
+def _edge_matches(wanted, keys):
+    """Every (i, j) with ``wanted[i] == keys[j]`` (W,) and (K,) int64 >= 0, as two arrays, by a hash table of
+    ``wanted`` (one pass over ``keys`` instead of a sort of them)."""
+    size = 16
+    while size < 2 * wanted.shape[0]:
+        size *= 2
+    table = np.full(size, -1, np.int64)  # the first row of every distinct wanted key
+    chain = np.full(wanted.shape[0], -1, np.int64)  # the next row with the same key
+    last = np.full(size, -1, np.int64)
+    for i in range(wanted.shape[0]):
+        slot = (wanted[i] * 0x1E3779B97F4A7C15 >> 17) & (size - 1)
+        while table[slot] >= 0 and wanted[table[slot]] != wanted[i]:
+            slot = (slot + 1) & (size - 1)
+        if table[slot] < 0:
+            table[slot] = i
+        else:
+            chain[last[slot]] = i
+        last[slot] = i
+    n = 0
+    for phase in range(2):  # count, then fill
+        if phase == 1:
+            rows = np.empty(n, np.int64)
+            cols = np.empty(n, np.int64)
+            n = 0
+        for j in range(keys.shape[0]):
+            slot = (keys[j] * 0x1E3779B97F4A7C15 >> 17) & (size - 1)
+            while table[slot] >= 0 and wanted[table[slot]] != keys[j]:
+                slot = (slot + 1) & (size - 1)
+            i = table[slot]
+            while i >= 0:
+                if phase == 1:
+                    rows[n], cols[n] = i, j
+                n += 1
+                i = chain[i]
+    return rows, cols
+
+
 def _face_points(fcs: np.ndarray, canon: np.ndarray, curves: IntersectionCurves):
     """Every (face, curve point, location on the face) to cut with, sorted by face and point.
 
@@ -157,12 +195,7 @@ def _face_points(fcs: np.ndarray, canon: np.ndarray, curves: IntersectionCurves)
     keys = _edge_keys(canon, fcs)
     on_edge = (loc >= 3) & (loc < 6)
     edge_key = keys[face[on_edge], loc[on_edge] - 3]
-    flat = keys.ravel()
-    order = np.argsort(flat, kind="stable")
-    lo = np.searchsorted(flat[order], edge_key, side="left")
-    count = np.searchsorted(flat[order], edge_key, side="right") - lo
-    rows = np.repeat(np.arange(len(edge_key)), count)
-    slots = order[np.repeat(lo - np.cumsum(count) + count, count) + np.arange(int(count.sum()))]
+    rows, slots = _edge_matches(edge_key, keys.ravel())
     face = np.concatenate([face, slots // 3])
     point = np.concatenate([point, point[on_edge][rows]])
     loc = np.concatenate([loc, 3 + slots % 3])
@@ -558,11 +591,11 @@ def _radial_twins(points, faces, partner, others):
     return partner
 
 
-def _split_touching(points, faces):
+def _split_touching(points, faces, twins):
     """Vertices and edges where sheets touch split apart (fans and radial pairing, see :func:`_fans`): the new
     points (V', 3), faces (F, 3), the old vertex of every new one (V',), or None when the faces do not pair up
-    into a closed, oriented surface."""
-    partner, others = halfedge_twins(faces, len(points))
+    into a closed, oriented surface. ``twins``: :func:`halfedge_twins` of the faces."""
+    partner, others = twins
     partner = _radial_twins(points, faces, partner, others)
     corner_vertex, count = _fans(faces, partner, len(points))
     if count < 0:
@@ -613,11 +646,12 @@ def mesh_problems(points, faces, *, query=None) -> list[str]:
     return _problems(pts, fcs, query, None)
 
 
-def _problems(pts, fcs, query, shells) -> list[str]:
-    """:func:`mesh_problems` of a validated mesh, with its :func:`_shells` when known."""
+def _problems(pts, fcs, query, shells, twins=None) -> list[str]:
+    """:func:`mesh_problems` of a validated mesh, with its :func:`_shells` and :func:`halfedge_twins` when
+    known."""
     n = len(pts)
     problems = []
-    partner, others = halfedge_twins(fcs, n)
+    partner, others = halfedge_twins(fcs, n) if twins is None else twins
     start = fcs.ravel()
     # every edge in two faces (one other face at every half-edge), the twin running the other way: a valid
     # surface skips the counts below, which name the problems
@@ -677,10 +711,13 @@ def _finalized(result: RepairResult) -> RepairResult:
     # faces of the input left whole were tested against each other when the curves were found: only pairs with
     # a piece of a cut face (it has a curve point) or a face at a split vertex are tested again
     changed = result.on_curve.copy()
-    split = _split_touching(points, faces) if len(faces) else None
+    twins = halfedge_twins(faces, len(points)) if len(faces) else None
+    split = _split_touching(points, faces, twins) if len(faces) else None
     if split is not None:
         points, faces, origin = split
         moved = origin != np.arange(len(origin))
+        if len(origin) != len(result.points) or moved.any():
+            twins = None  # the faces changed
         changed = changed[origin] | moved
         changed[origin[moved]] = True
         result = replace(result, points=points, faces=faces, source_vertex=result.source_vertex[origin],
@@ -690,8 +727,8 @@ def _finalized(result: RepairResult) -> RepairResult:
         shells = shell, volume, area = _shells(points, faces)
         keep = (np.abs(volume) > THIN_SHELL * _diagonal(points) * area)[shell]
         if not keep.all():
-            shells = None
-            used = np.unique(faces[keep])
+            shells = twins = None
+            used = _used_vertices(faces[keep], len(points))
             new_index = np.full(len(points), -1, np.int64)
             new_index[used] = np.arange(len(used))
             lines = [new_index[line] for line in result.polylines]
@@ -701,7 +738,7 @@ def _finalized(result: RepairResult) -> RepairResult:
             changed = changed[used]
     problems = []
     if len(result.faces):  # empty: nothing left, which is a valid result
-        problems = _problems(result.points, result.faces, changed[result.faces].any(axis=1), shells)
+        problems = _problems(result.points, result.faces, changed[result.faces].any(axis=1), shells, twins)
     if problems:
         raise RepairError("the result would not be a closed, oriented 2-manifold without self-intersections: "
                           + "; ".join(problems))
@@ -771,15 +808,18 @@ def _corefine(pts, fcs, group, operation) -> RepairResult:
     front = np.zeros((n_groups, len(reps)), np.int64)
     fcs_group = np.zeros(len(fcs), np.int64) if group is None else np.asarray(group)
     pair_group = fcs_group[curves.pairs]
+    rows = []  # the patches whose winding number of operand k is cast, for every k
     for k in range(n_groups):
         # an operand's own winding number in front of its faces is 0 unless it meets itself (or it is a repair)
         if group is not None and not np.any((pair_group[:, 0] == k) & (pair_group[:, 1] == k)):
-            rows = own != k
+            rows.append(np.flatnonzero(own != k))
         else:
-            rows = np.ones(len(reps), bool)
-        winding, down = _patch_windings(all_points, faces, source_group, reps[rows],
-                                        np.full(np.count_nonzero(rows), k))
-        front[k, rows] = winding - (down & (own[rows] == k))
+            rows.append(np.arange(len(reps)))
+    # the rays of all operands at once: one grid of columns over the faces
+    winding, down = _patch_windings(all_points, faces, source_group, reps[np.concatenate(rows)],
+                                    np.repeat(np.arange(n_groups), [len(r) for r in rows]))
+    cast = np.repeat(np.arange(n_groups), [len(r) for r in rows]), np.concatenate(rows)
+    front[cast] = winding - (down & (own[cast[1]] == cast[0]))
     back = front + (np.arange(n_groups)[:, None] == own)
     lowest = np.ones(len(reps), bool)
     if len(overlaps):  # patches on coplanar overlaps: the winding numbers across every face lying there
@@ -795,7 +835,7 @@ def _corefine(pts, fcs, group, operation) -> RepairResult:
     keep, turn = stays[patch], turns[patch]
     faces = np.where(turn[:, None], faces[:, ::-1], faces)[keep]
     source = source[keep]
-    used = np.unique(faces)
+    used = _used_vertices(faces, n_all)
     new_index = np.full(n_all, -1, np.int64)
     new_index[used] = np.arange(len(used))
     on_curve = np.zeros(n_all, bool)
@@ -804,6 +844,13 @@ def _corefine(pts, fcs, group, operation) -> RepairResult:
     return RepairResult(points=all_points[used], faces=new_index[faces], source_face=source,
                         source_vertex=np.where(used < len(pts), used, -1),
                         on_curve=on_curve[used], curves=curves, polylines=polylines)
+
+
+def _used_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """The vertices that some face uses, ascending (as ``np.unique(faces)``, without a sort)."""
+    used = np.zeros(n_vertices, bool)
+    used[faces.ravel()] = True
+    return np.flatnonzero(used)
 
 
 def _tolerance(points: np.ndarray, tolerance: float) -> float:
