@@ -335,6 +335,38 @@ def _follow(line: np.ndarray, merged: np.ndarray, splits: np.ndarray) -> np.ndar
     return line[np.r_[True, line[1:] != line[:-1]]]
 
 
+_SCREEN_MARGIN = 1e-6
+"""Relative margin of :func:`_may_need_pass`, far above the rounding differences between NumPy and the kernel."""
+
+
+def _may_need_pass(points: np.ndarray, faces: np.ndarray, needle: float, cap_height: float, cap_cos: float) -> bool:
+    """Whether some face may be a needle or a cap (False: certainly none, so a pass would change nothing).
+
+    The tests of :func:`_candidates` in NumPy, with a margin and any non-finite value counted as a possible
+    candidate: a mesh without degenerate faces (the usual input of the repair pre-pass) then needs no kernel,
+    which saves compiling the pass on a first run.
+    """
+    if len(faces) == 0:
+        return False
+    corner = points[faces]  # (F, 3, 3)
+    edge = np.roll(corner, -1, axis=1) - corner  # edge k runs from corner k to corner k + 1
+    length = np.sqrt(np.einsum("fkd,fkd->fk", edge, edge))
+    longest = length.max(axis=1)
+    area2 = np.linalg.norm(np.cross(edge[:, 0], edge[:, 1]), axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        height = area2 / longest
+    # the angle opposite the longest edge is the largest: its cosine is the smallest of the three
+    a, b = -np.roll(edge, 1, axis=1), edge  # the two edges leaving each corner
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cos = np.einsum("fkd,fkd->fk", a, b) / (np.roll(length, 1, axis=1) * length)
+    values = np.column_stack([length, height, cos])
+    if not np.isfinite(values).all():
+        return True
+    slack = 1.0 + _SCREEN_MARGIN
+    return bool((length.min(axis=1) < needle * slack).any() or (height <= cap_height * slack).any()
+                or (cos.min(axis=1) < cap_cos + _SCREEN_MARGIN).any())
+
+
 def remove_degenerate_faces(
     points: np.ndarray,
     faces: np.ndarray,
@@ -387,6 +419,8 @@ def remove_degenerate_faces(
     cap_cos = -2.0 if max_angle is None else float(np.cos(np.radians(max_angle)))
     crease_cos = float(np.cos(np.radians(crease_angle)))
     totals = np.zeros(3, np.int64)
+    if not _may_need_pass(pts, fcs, float(needle_length), float(cap_height), cap_cos):
+        max_passes = 0  # no needle or cap: the mesh stays as it is, and the pass kernel is not even compiled
     for _ in range(max_passes):
         keys, degree = _curve_edges(lines, len(pts))
         (new_pts, new_fcs, alive, merged, parent, curve, splits, *counts) = _pass(
