@@ -27,8 +27,8 @@ the whole compile time and ``process_cpu_s`` the CPU seconds of the process.
     python benchmarks/bench_cold_start.py --per-kernel --stages curvature [--top 25]
 
 ``--write-plan`` runs the chosen stages cold the same way and stores, per
-stage, the kernels it compiled with their argument types, in the order it
-compiled them, in ``pverosion/compile_plan.json``: the plan of the compile
+stage, the kernels it compiled with their argument types and compile
+seconds, in the order it compiled them, in ``pverosion/compile_plan.json``: the plan of the compile
 helper process (:mod:`pverosion._precompile`). Run it after changing the
 kernels or the argument types a stage passes them.
 """
@@ -186,7 +186,7 @@ def per_kernel(stage: str, command: list[str], folder: Path, top: int) -> dict:
     if done.returncode != 0:
         raise RuntimeError(f"{stage} failed:\n{done.stderr[-2000:]}")
     records = json.loads(out.read_text())
-    plan = [[r["module"], r["name"], r["signature"]] for r in records  # top-level kernels in the order of use
+    plan = [[r["module"], r["name"], r["signature"], r["total_s"]] for r in records  # top-level, in order of use
             if r["caller"] is None and r["module"].startswith("pverosion.") and "<" not in r["name"]]
     records.sort(key=lambda r: -r["self_s"])
     signatures: dict[str, int] = {}

@@ -1,18 +1,18 @@
-"""A second process that compiles a stage's kernels from the other end while the stage runs on a cold cache.
+"""A second process that compiles some of a stage's kernels ahead of it while the stage runs on a cold cache.
 
 numba compiles a kernel in the process that first calls it, one kernel after
 another. On a cold cache (a fresh install) a stage's first run therefore
 spends most of its time compiling on one core. When the stage compiles its
 first kernel, :func:`start_helper` starts ``python -m pverosion._precompile
-STAGE``: it compiles the kernels the stage will need, in the reverse of the
-order the stage calls them, into the same numba cache. The stage loads from
-the cache every kernel the helper has finished by the time it gets there, and
-the helper loads the ones the stage has compiled; the two meet in the middle.
+STAGE``: it compiles kernels the stage will need into the same numba cache,
+chosen from their compile times so that each is ready before the stage gets
+to it (:func:`helper_order`). The stage loads from the cache every kernel the
+helper has finished by the time it gets there, and compiles the others.
 When the stage is done, :func:`stop_helper` ends the helper. Results do not
 change: the helper only fills the cache with the code the stage would compile.
 
-The kernels and argument types of each stage are listed, in the order a run
-calls them, in ``compile_plan.json`` next to this module, written by
+The kernels, argument types and compile seconds of each stage are listed, in
+the order a run calls them, in ``compile_plan.json`` next to this module, written by
 ``python benchmarks/bench_cold_start.py --write-plan``. A kernel whose
 argument types have changed since is compiled for nothing (the stage compiles
 its own); one that no longer exists is skipped.
@@ -35,22 +35,25 @@ from contextlib import contextmanager
 from functools import cache
 from pathlib import Path
 
-__all__ = ["PLAN_FILE", "compile_plan", "enabled", "helpers_allowed", "lock_cache_saves", "plan", "start_helper",
-           "stop_helper"]
+__all__ = ["HELPER_DELAY_S", "PLAN_FILE", "compile_plan", "enabled", "helper_order", "helpers_allowed",
+           "lock_cache_saves", "plan", "start_helper", "stop_helper"]
 
 PLAN_FILE = Path(__file__).with_name("compile_plan.json")
 ENVIRONMENT = "PVEROSION_PRECOMPILE"
+HELPER_DELAY_S = 2.0
+"""Seconds from the stage's first compilation until the helper, a new process, starts compiling."""
 _allowed = False  # within helpers_allowed()
 
 
 @cache
-def _plans() -> dict[str, list[list[str]]]:
+def _plans() -> dict[str, list[list]]:
     return json.loads(PLAN_FILE.read_text()) if PLAN_FILE.exists() else {}
 
 
-def plan(stage: str) -> list[tuple[str, str, str]]:
-    """The kernels of ``stage`` in the order a run compiles them: (module, function name, argument types)."""
-    return [tuple(entry) for entry in _plans().get(stage, [])]
+def plan(stage: str) -> list[tuple[str, str, str, float]]:
+    """The kernels of ``stage`` in the order a run compiles them: (module, function name, argument types, CPU
+    seconds the compilation took when the plan was written)."""
+    return [(module, name, signature, float(seconds)) for module, name, signature, seconds in _plans().get(stage, [])]
 
 
 def _argument_types(text: str) -> tuple:
@@ -61,15 +64,50 @@ def _argument_types(text: str) -> tuple:
     return tuple(eval(text, {"__builtins__": {}}, names))  # the text comes from the package's own plan file
 
 
-def compile_plan(stage: str, *, reverse: bool = True) -> int:
-    """Compile (or load from the cache) the kernels of ``stage``'s plan; returns how many it compiled or loaded.
+def _stage_seconds(seconds: list[float], taken: list[int], delay: float) -> float:
+    """Compile seconds of the stage's process when the helper, starting ``delay`` s later, compiles the kernels
+    ``taken`` (ascending) in that order: the stage loads those the helper has finished and compiles the rest."""
+    ready, clock = {}, delay
+    for k in taken:
+        clock += seconds[k]
+        ready[k] = clock
+    clock = 0.0
+    for k, cost in enumerate(seconds):
+        if ready.get(k, float("inf")) > clock:
+            clock += cost
+    return clock
+
+
+def helper_order(seconds: list[float], *, delay: float = HELPER_DELAY_S) -> list[int]:
+    """The order in which the helper compiles the kernels of a plan (indices into ``seconds``).
+
+    Greedily the kernels whose taking over shortens the stage's compilation most
+    (:func:`_stage_seconds`), in the stage's order of use; then the others,
+    last used first, in case the stage runs slower than the plan's figures.
+    """
+    taken: list[int] = []
+    best = _stage_seconds(seconds, taken, delay)
+    while True:
+        trials = [(_stage_seconds(seconds, sorted([*taken, k]), delay), k)
+                  for k in range(len(seconds)) if k not in taken]
+        if not trials or min(trials)[0] >= best:
+            break
+        best, k = min(trials)
+        taken = sorted([*taken, k])
+    return taken + [k for k in reversed(range(len(seconds))) if k not in taken]
+
+
+def compile_plan(stage: str) -> int:
+    """Compile (or load from the cache) the kernels of ``stage``'s plan in :func:`helper_order`; returns how many
+    it compiled or loaded.
 
     Entries whose module or function no longer exists, or that fail to compile
     for the recorded types, are skipped: the stage itself compiles what it needs.
     """
     done = 0
     entries = plan(stage)
-    for module, name, signature in reversed(entries) if reverse else entries:
+    for k in helper_order([entry[3] for entry in entries]):
+        module, name, signature, _ = entries[k]
         try:
             kernel = getattr(importlib.import_module(module), name)
             kernel.compile(_argument_types(signature))

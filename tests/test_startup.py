@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import numba
+import numpy as np
 import pytest
 
 import pverosion
@@ -166,7 +167,8 @@ def test_compile_plan_names_existing_kernels_with_parsable_types():
     plans = json.loads(_precompile.PLAN_FILE.read_text())
     assert {"curvature", "weather", "boolean"} <= set(plans) <= {s.command for s in STAGE_INDEX}
     for stage in plans:
-        for module, name, signature in _precompile.plan(stage):
+        for module, name, signature, seconds in _precompile.plan(stage):
+            assert seconds >= 0.0
             kernel = getattr(importlib.import_module(module), name)
             assert isinstance(kernel, Dispatcher), (module, name)
             types = _precompile._argument_types(signature)
@@ -176,14 +178,28 @@ def test_compile_plan_names_existing_kernels_with_parsable_types():
 def test_compile_plan_compiles_its_entries_and_skips_stale_ones(monkeypatch):
     from pverosion import _precompile
 
-    entries = [["pverosion.kernels.exact.intersection", "_spread", "(int64,)"],
-               ["pverosion.kernels.exact.intersection", "no_such_kernel", "(int64,)"],
-               ["pverosion.kernels.exact.intersection", "_spread", "(NoSuchType,)"]]
+    entries = [["pverosion.kernels.exact.intersection", "_spread", "(int64,)", 0.1],
+               ["pverosion.kernels.exact.intersection", "no_such_kernel", "(int64,)", 0.1],
+               ["pverosion.kernels.exact.intersection", "_spread", "(NoSuchType,)", 0.1]]
     monkeypatch.setattr(_precompile, "_plans", lambda: {"test": entries})
     assert _precompile.compile_plan("test") == 1
     from pverosion.kernels.exact.intersection import _spread
 
     assert (numba.int64,) in _spread.signatures
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_helper_order_covers_the_plan_and_never_slows_the_stage(seed):
+    from pverosion._precompile import _stage_seconds, helper_order
+
+    seconds = list(np.random.default_rng(seed).exponential(1.0, size=20))
+    order = helper_order(seconds, delay=1.0)
+    assert sorted(order) == list(range(20))
+    best = min(_stage_seconds(seconds, sorted(order[:n]), 1.0) for n in range(21))
+    assert best <= _stage_seconds(seconds, [], 1.0) == pytest.approx(sum(seconds))
+    # one long kernel used last: the helper starts with it, and the stage only compiles the others
+    assert helper_order([1.0, 1.0, 1.0, 1.0, 3.0], delay=0.5)[0] == 4
+    assert _stage_seconds([1.0, 1.0, 1.0, 1.0, 3.0], [4], 0.5) == 4.0
 
 
 def test_helper_only_when_allowed(monkeypatch):
