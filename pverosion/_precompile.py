@@ -8,8 +8,10 @@ STAGE``: it compiles kernels the stage will need into the same numba cache,
 chosen from their compile times so that each is ready before the stage gets
 to it (:func:`helper_order`). The stage loads from the cache every kernel the
 helper has finished by the time it gets there, and compiles the others.
-When the stage is done, :func:`stop_helper` ends the helper. Results do not
-change: the helper only fills the cache with the code the stage would compile.
+There is no helper for a stage whose plan shows little to gain
+(:func:`worth_a_helper`). When the stage is done, :func:`stop_helper` ends
+the helper. Results do not change: the helper only fills the cache with the
+code the stage would compile.
 
 The kernels, argument types and compile seconds of each stage are listed, in
 the order a run calls them, in ``compile_plan.json`` next to this module, written by
@@ -35,13 +37,15 @@ from contextlib import contextmanager
 from functools import cache
 from pathlib import Path
 
-__all__ = ["HELPER_DELAY_S", "PLAN_FILE", "compile_plan", "enabled", "helper_order", "helpers_allowed",
-           "lock_cache_saves", "plan", "start_helper", "stop_helper"]
+__all__ = ["HELPER_DELAY_S", "MIN_SAVING_S", "PLAN_FILE", "compile_plan", "enabled", "helper_order",
+           "helpers_allowed", "lock_cache_saves", "plan", "start_helper", "stop_helper", "worth_a_helper"]
 
 PLAN_FILE = Path(__file__).with_name("compile_plan.json")
 ENVIRONMENT = "PVEROSION_PRECOMPILE"
 HELPER_DELAY_S = 2.0
 """Seconds from the stage's first compilation until the helper, a new process, starts compiling."""
+MIN_SAVING_S = 4.0
+"""Compile seconds a helper must save a stage (by the plan's figures) to be started."""
 _allowed = False  # within helpers_allowed()
 
 
@@ -78,23 +82,36 @@ def _stage_seconds(seconds: list[float], taken: list[int], delay: float) -> floa
     return clock
 
 
-def helper_order(seconds: list[float], *, delay: float = HELPER_DELAY_S) -> list[int]:
-    """The order in which the helper compiles the kernels of a plan (indices into ``seconds``).
-
-    Greedily the kernels whose taking over shortens the stage's compilation most
-    (:func:`_stage_seconds`), in the stage's order of use; then the others,
-    last used first, in case the stage runs slower than the plan's figures.
-    """
+def _taken(seconds: list[float], delay: float) -> tuple[list[int], float]:
+    """Greedily the kernels whose taking over shortens the stage's compilation most (:func:`_stage_seconds`),
+    ascending, and the stage's compile seconds then."""
     taken: list[int] = []
     best = _stage_seconds(seconds, taken, delay)
     while True:
         trials = [(_stage_seconds(seconds, sorted([*taken, k]), delay), k)
                   for k in range(len(seconds)) if k not in taken]
         if not trials or min(trials)[0] >= best:
-            break
+            return taken, best
         best, k = min(trials)
         taken = sorted([*taken, k])
+
+
+def helper_order(seconds: list[float], *, delay: float = HELPER_DELAY_S) -> list[int]:
+    """The order in which the helper compiles the kernels of a plan (indices into ``seconds``).
+
+    The kernels of :func:`_taken`, in the stage's order of use; then the
+    others, last used first, in case the stage runs slower than the plan's
+    figures.
+    """
+    taken, _ = _taken(seconds, delay)
     return taken + [k for k in reversed(range(len(seconds))) if k not in taken]
+
+
+def worth_a_helper(stage: str) -> bool:
+    """Whether the helper would save the stage at least :data:`MIN_SAVING_S` of compilation by the plan's figures
+    (starting a process costs CPU time too, which a busy machine does not have to spare)."""
+    seconds = [entry[3] for entry in plan(stage)]
+    return sum(seconds) - _taken(seconds, HELPER_DELAY_S)[1] >= MIN_SAVING_S
 
 
 def compile_plan(stage: str) -> int:
@@ -167,7 +184,7 @@ def enabled() -> bool:
 
 def start_helper(stage: str) -> subprocess.Popen | None:
     """Start the helper process for ``stage`` if :func:`enabled`; None if not started."""
-    if not enabled() or not plan(stage):
+    if not enabled() or not worth_a_helper(stage):
         return None
     lock_cache_saves()
     package_parent = str(Path(__file__).resolve().parents[1])

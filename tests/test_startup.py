@@ -202,6 +202,16 @@ def test_helper_order_covers_the_plan_and_never_slows_the_stage(seed):
     assert _stage_seconds([1.0, 1.0, 1.0, 1.0, 3.0], [4], 0.5) == 4.0
 
 
+def test_a_helper_only_where_the_plan_shows_enough_to_gain(monkeypatch):
+    from pverosion import _precompile
+
+    entry = ["pverosion.kernels.exact.intersection", "_spread", "(int64,)"]
+    plans = {"short": [[*entry, 0.5]] * 6, "long": [[*entry, 1.0]] * 14 + [[*entry, 10.0]]}
+    monkeypatch.setattr(_precompile, "_plans", lambda: plans)
+    assert not _precompile.worth_a_helper("short") and not _precompile.worth_a_helper("unknown")
+    assert _precompile.worth_a_helper("long")
+
+
 def test_helper_only_when_allowed(monkeypatch):
     from pverosion import _precompile
 
