@@ -5,7 +5,10 @@ reading, compiling, running, writing) and, as ``*_cpu_s``, the CPU seconds
 (user + system) of the same processes, and the functions numba compiled
 with the seconds it took (``cold_compiled``; a warm run should compile none). "cold" runs with ``NUMBA_CACHE_DIR``
 pointing at a new empty folder, as after a fresh install; "warm" repeats the
-same command with the cache the cold run filled. Also timed: ``import
+same command with the cache the cold run filled. A cold run includes the
+compile helper process the command line starts (:mod:`pverosion._precompile`;
+``PVEROSION_PRECOMPILE=0`` in the environment turns it off), and its CPU
+seconds count in ``cold_cpu_s``. Also timed: ``import
 pverosion``, ``pverosion --help``, and ``pverosion warmup`` of every stage
 (parallel processes) into another empty cache, after which every stage's
 first run is timed again ("after_warmup").
@@ -25,6 +28,12 @@ LLVM (optimising and emitting machine code). The list is sorted by ``self_s``; `
 the whole compile time and ``process_cpu_s`` the CPU seconds of the process.
 
     python benchmarks/bench_cold_start.py --per-kernel --stages curvature [--top 25]
+
+``--write-plan`` runs the chosen stages cold the same way and stores, per
+stage, the kernels it compiled with their argument types and compile
+seconds, in the order it compiled them, in ``pverosion/compile_plan.json``: the plan of the compile
+helper process (:mod:`pverosion._precompile`). Run it after changing the
+kernels or the argument types a stage passes them.
 """
 
 from __future__ import annotations
@@ -51,6 +60,7 @@ from pverosion.scenes.intersection import two_spheres
 from pverosion.scenes.voxel import meander_grid
 
 ROOT = Path(__file__).resolve().parents[1]
+PLAN_FILE = ROOT / "pverosion" / "compile_plan.json"
 DEFAULT = data_path("bunny.ply")
 COMPILED = re.compile(r"compiled (\d+) functions in ([\d.]+) s")
 TARGETS_S = {"curvature_cold": 8.0, "curvature_warm": 2.0, "weather_cold": 10.0, "boolean_cold": 15.0,
@@ -133,16 +143,17 @@ class Profile(event.Listener):
     def on_start(self, ev):
         dispatcher = ev.data["dispatcher"]
         name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}"
-        stack.append([time.process_time(), 0.0, name, 0.0])
+        stack.append([time.process_time(), 0.0, name, 0.0, dispatcher.py_func.__module__,
+                      dispatcher.py_func.__qualname__])
 
     def on_end(self, ev):
-        started, children, name, llvm = stack.pop()
+        started, children, name, llvm, module, qualname = stack.pop()
         total = time.process_time() - started
         if stack:
             stack[-1][1] += total
         records.append({"function": name, "signature": str(tuple(ev.data["args"])),
                         "self_s": round(total - children, 3), "total_s": round(total, 3), "llvm_s": round(llvm, 3),
-                        "caller": stack[-1][2] if stack else None})
+                        "caller": stack[-1][2] if stack else None, "module": module, "name": qualname})
 
 class Llvm(event.Listener):
     depth, started = 0, 0.0
@@ -170,13 +181,16 @@ def per_kernel(stage: str, command: list[str], folder: Path, top: int) -> dict:
     """Compile seconds per function and signature of one cold run of ``stage`` (see the module docstring)."""
     cache = folder / f"cache_profile_{stage}"
     out = folder / f"profile_{stage}.json"
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(cache), "PVEROSION_COMPILE_PROFILE": str(out)}
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(cache), "PVEROSION_COMPILE_PROFILE": str(out),
+           "PVEROSION_PRECOMPILE": "0"}  # everything compiled in this process, without the helper
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     done = subprocess.run([sys.executable, "-c", PROFILE, *command], env=env, capture_output=True, text=True)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if done.returncode != 0:
         raise RuntimeError(f"{stage} failed:\n{done.stderr[-2000:]}")
     records = json.loads(out.read_text())
+    plan = [[r["module"], r["name"], r["signature"], r["total_s"]] for r in records  # top-level, in order of use
+            if r["caller"] is None and r["module"].startswith("pverosion.") and "<" not in r["name"]]
     records.sort(key=lambda r: -r["self_s"])
     signatures: dict[str, int] = {}
     for record in records:
@@ -186,7 +200,7 @@ def per_kernel(stage: str, command: list[str], folder: Path, top: int) -> dict:
             "llvm_s": round(sum(r["llvm_s"] for r in records), 2),
             "compiled": len(records),
             "several_signatures": {name: n for name, n in signatures.items() if n > 1},
-            "kernels": records[:top] if top > 0 else records}
+            "kernels": records[:top] if top > 0 else records, "plan": plan}
 
 
 def main() -> None:
@@ -197,6 +211,9 @@ def main() -> None:
     parser.add_argument("--per-kernel", action="store_true",
                         help="only the cold runs, with the compile seconds of every function and signature")
     parser.add_argument("--top", type=int, default=30, help="with --per-kernel: functions listed per stage (0: all)")
+    parser.add_argument("--write-plan", action="store_true",
+                        help="run the stages cold and write the kernels each compiles, in order, to "
+                             "pverosion/compile_plan.json (the compile helper's plan)")
     add_load_option(parser)
     args = parser.parse_args()
     stages = [s for s in args.stages.split(",") if s] or [s.command for s in STAGE_INDEX]
@@ -205,9 +222,16 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="pverosion_cold_") as tmp:
         folder = Path(tmp)
         commands = _inputs(folder, args.data)
-        if args.per_kernel:
+        if args.per_kernel or args.write_plan:
             profiles = {stage: per_kernel(stage, commands[stage], folder, args.top)
                         for stage in stages}
+            if args.write_plan:
+                plans = json.loads(PLAN_FILE.read_text()) if PLAN_FILE.exists() else {}
+                plans.update({stage: profile.pop("plan") for stage, profile in profiles.items()})
+                PLAN_FILE.write_text(json.dumps(dict(sorted(plans.items())), indent=1) + "\n")
+                return
+            for profile in profiles.values():
+                del profile["plan"]
             print(json.dumps({"benchmark": "cold_start_per_kernel", "mesh": args.data.name, "stages": profiles},
                              indent=1))
             return

@@ -88,7 +88,8 @@ def _cache_location() -> str:
 
 
 def _compile_notice(stage: str, stream: TextIO):
-    """A numba event listener that announces the first compilation and sums the compile time."""
+    """A numba event listener that announces the first compilation, starts the compile helper
+    (:mod:`pverosion._precompile`) and sums the compile time; its ``helper`` is the helper process or None."""
     from numba.core import event
 
     class CompileNotice(event.Listener):
@@ -97,13 +98,17 @@ def _compile_notice(stage: str, stream: TextIO):
             self.started = 0.0
             self.seconds = 0.0
             self.count = 0  # functions compiled, the ones compiled for a caller included
+            self.helper = None
 
         def on_start(self, ev):
             self.count += 1
             if self.depth == 0:
-                if self.seconds == 0.0:
+                if self.seconds == 0.0 and self.count == 1:
                     print(f"pverosion {stage}: compiling kernels, once per install (cached in {_cache_location()}) ...",
                           file=stream, flush=True)
+                    from pverosion._precompile import start_helper
+
+                    self.helper = start_helper(stage)
                 self.started = time.perf_counter()
             self.depth += 1
 
@@ -147,6 +152,10 @@ def stage_run(stage: str, n_points: int = 0, *, stream: TextIO | None = None) ->
             yield
     finally:
         _state.active = False
+        if notice.helper is not None:
+            from pverosion._precompile import stop_helper
+
+            stop_helper(notice.helper)
         if notice.seconds > 0.0:
             print(f"pverosion {stage}: compiled {notice.count} functions in {notice.seconds:.1f} s", file=stream,
                   flush=True)

@@ -314,7 +314,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         # a stage takes Ctrl-C at its next step boundary; batch and demo are interrupted as usual
         deferred = deferred_interrupt() if hasattr(args, "filter_cls") else contextlib.nullcontext()
-        with deferred, warnings.catch_warnings():
+        from pverosion._precompile import helpers_allowed  # a compile helper process on a cold cache
+
+        with deferred, warnings.catch_warnings(), helpers_allowed():
             warnings.showwarning = show
             if args.command == "demo":
                 _run_demo(args)

@@ -136,6 +136,10 @@ def _warm_one(stage: str) -> float:
     return time.perf_counter() - start
 
 
+def _without_helper() -> None:
+    os.environ["PVEROSION_PRECOMPILE"] = "0"  # in a pool worker
+
+
 def warm_up(stages: Sequence[str] | None = None, *, processes: int | None = None) -> dict[str, float]:
     """Compile (or load from numba's cache) the kernels of ``stages``.
 
@@ -169,5 +173,6 @@ def warm_up(stages: Sequence[str] | None = None, *, processes: int | None = None
     if n <= 1:
         return {stage: _warm_one(stage) for stage in stages}
     # spawn: a forked child would inherit numba's thread pool state from this process
-    with ProcessPoolExecutor(max_workers=n, mp_context=get_context("spawn")) as pool:
+    # each worker compiles its own stage: no compile helper processes (pverosion._precompile) on top
+    with ProcessPoolExecutor(max_workers=n, mp_context=get_context("spawn"), initializer=_without_helper) as pool:
         return dict(zip(stages, pool.map(_warm_one, stages)))

@@ -129,3 +129,29 @@ def test_repair_options_are_checked():
     for bad in (-1e-9, np.nan):
         with pytest.raises(ValueError, match="tolerance"):
             repair_intersections(points, faces, tolerance=bad)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_screen_finds_a_face_exactly_when_the_pass_would_fix_one(seed):
+    """A mesh without candidates stays as it is; random triangles straddle every threshold."""
+    from pverosion.kernels.mesh.degenerate import _candidates, _has_candidate
+
+    rng = np.random.default_rng(seed)
+    points, faces = _arrays(A)
+    edge = average_edge_length(points, faces)
+    assert not _has_candidate(points, faces, 0.01 * edge, 0.01 * edge, -2.0)
+    clean = remove_degenerate_faces(points, faces, needle_length=0.01 * edge, cap_height=0.01 * edge)
+    assert np.array_equal(clean.faces, faces) and np.array_equal(clean.points, points)
+    assert np.array_equal(clean.face_source, np.arange(len(faces))) and clean.collapsed == clean.flipped == 0
+    flagged = 0
+    for _ in range(300):
+        tri = rng.normal(size=(3, 3))
+        tri[2] = tri[0] + rng.uniform(0.0, 1.0) * (tri[1] - tri[0]) + rng.normal(scale=10.0 ** rng.uniform(-9, 0),
+                                                                                  size=3)
+        one = np.array([[0, 1, 2]])
+        lengths = np.linalg.norm(tri - np.roll(tri, -1, axis=0), axis=1)
+        needle, cap, cap_cos = lengths.min() * rng.uniform(0.5, 1.5), rng.uniform(0.0, 1e-3), rng.uniform(-1.0, -0.9)
+        found = len(_candidates(tri, one, needle, cap, cap_cos)[0]) > 0
+        assert _has_candidate(tri, one, needle, cap, cap_cos) == found
+        flagged += found
+    assert 30 < flagged < 300  # both outcomes occur

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import io
 import json
 import os
@@ -10,6 +11,7 @@ import sys
 from pathlib import Path
 
 import numba
+import numpy as np
 import pytest
 
 import pverosion
@@ -155,3 +157,91 @@ def test_warm_up_in_parallel_processes():
     seconds = warm_up(["curvature", "materials"], processes=2)
     assert set(seconds) == {"curvature", "materials"}
     assert all(s > 0 for s in seconds.values())
+
+
+def test_compile_plan_names_existing_kernels_with_parsable_types():
+    from numba.core.dispatcher import Dispatcher
+
+    from pverosion import _precompile
+
+    plans = json.loads(_precompile.PLAN_FILE.read_text())
+    assert {"curvature", "weather", "boolean"} <= set(plans) <= {s.command for s in STAGE_INDEX}
+    for stage in plans:
+        for module, name, signature, seconds in _precompile.plan(stage):
+            assert seconds >= 0.0
+            kernel = getattr(importlib.import_module(module), name)
+            assert isinstance(kernel, Dispatcher), (module, name)
+            types = _precompile._argument_types(signature)
+            assert str(types) == signature and len(types) == kernel.py_func.__code__.co_argcount
+
+
+def test_compile_plan_compiles_its_entries_and_skips_stale_ones(monkeypatch):
+    from pverosion import _precompile
+
+    entries = [["pverosion.kernels.exact.intersection", "_spread", "(int64,)", 0.1],
+               ["pverosion.kernels.exact.intersection", "no_such_kernel", "(int64,)", 0.1],
+               ["pverosion.kernels.exact.intersection", "_spread", "(NoSuchType,)", 0.1]]
+    monkeypatch.setattr(_precompile, "_plans", lambda: {"test": entries})
+    assert _precompile.compile_plan("test") == 1
+    from pverosion.kernels.exact.intersection import _spread
+
+    assert (numba.int64,) in _spread.signatures
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_helper_order_covers_the_plan_and_never_slows_the_stage(seed):
+    from pverosion._precompile import _stage_seconds, helper_order
+
+    seconds = list(np.random.default_rng(seed).exponential(1.0, size=20))
+    order = helper_order(seconds, delay=1.0)
+    assert sorted(order) == list(range(20))
+    best = min(_stage_seconds(seconds, sorted(order[:n]), 1.0) for n in range(21))
+    assert best <= _stage_seconds(seconds, [], 1.0) == pytest.approx(sum(seconds))
+    # one long kernel used last: the helper starts with it, and the stage only compiles the others
+    assert helper_order([1.0, 1.0, 1.0, 1.0, 3.0], delay=0.5)[0] == 4
+    assert _stage_seconds([1.0, 1.0, 1.0, 1.0, 3.0], [4], 0.5) == 4.0
+
+
+def test_a_helper_only_where_the_plan_shows_enough_to_gain(monkeypatch):
+    from pverosion import _precompile
+
+    entry = ["pverosion.kernels.exact.intersection", "_spread", "(int64,)"]
+    plans = {"short": [[*entry, 0.5]] * 6, "long": [[*entry, 1.0]] * 14 + [[*entry, 10.0]]}
+    monkeypatch.setattr(_precompile, "_plans", lambda: plans)
+    assert not _precompile.worth_a_helper("short") and not _precompile.worth_a_helper("unknown")
+    assert _precompile.worth_a_helper("long")
+
+
+def test_helper_only_when_allowed(monkeypatch):
+    from pverosion import _precompile
+
+    monkeypatch.delenv("PVEROSION_PRECOMPILE", raising=False)
+    assert not _precompile.enabled()
+    with _precompile.helpers_allowed():
+        assert _precompile.enabled() == (os.name == "posix" and (os.cpu_count() or 1) > 1)
+        monkeypatch.setenv("PVEROSION_PRECOMPILE", "0")
+        assert not _precompile.enabled() and _precompile.start_helper("curvature") is None
+    assert not _precompile._allowed
+
+
+@pytest.mark.skipif(os.name != "posix", reason="the cache lock uses flock")
+def test_locked_cache_saves_keep_every_entry_under_concurrent_saves(tmp_path):
+    """Threads saving different keys of one function's cache at once: every key loads its own data."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from numba.core.caching import IndexDataCacheFile
+
+    from pverosion._precompile import lock_cache_saves
+
+    lock_cache_saves()
+    lock_cache_saves()  # once is enough; a second call changes nothing
+    cache_file = IndexDataCacheFile(str(tmp_path), "kernel-1.py311", source_stamp=(1.0, 10))
+
+    def save(worker):
+        for i in range(25):
+            cache_file.save((worker, i), f"{worker}:{i}")
+
+    with ThreadPoolExecutor(4) as pool:
+        list(pool.map(save, range(4)))
+    assert all(cache_file.load((w, i)) == f"{w}:{i}" for w in range(4) for i in range(25))
+    assert (tmp_path / "pverosion-cache.lock").exists()

@@ -167,12 +167,12 @@ def triangles_intersect(p, q) -> bool:
     return bool(tri_tri(v3.row(p, 0), v3.row(p, 1), v3.row(p, 2), v3.row(q, 0), v3.row(q, 1), v3.row(q, 2)))
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _key(ix, iy, iz):
     return (ix << 42) | (iy << 21) | iz
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _spread(x):
     """Spread the low 21 bits of x two bits apart (Morton code helper)."""
     x &= 0x1FFFFF
@@ -184,12 +184,12 @@ def _spread(x):
     return x
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _morton(ix, iy, iz):
     return (_spread(ix) << 2) | (_spread(iy) << 1) | _spread(iz)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _hash(ix, iy, iz, size):
     """Bucket of a cell: its Morton code modulo the table size, so that cells near in
     space mostly land in buckets near in memory."""
@@ -373,7 +373,7 @@ def _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
     return max(fx0, gx0) == ix and max(fy0, gy0) == iy and max(fz0, gz0) == iz
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _side_range(points, faces, h, other, m, o, shared):
     """Bounds of m . (p - o) over the vertices p of face h (but those of face ``other`` when ``shared``), widened
     by far more than their rounding (below 4 eps |m|_1 |p - o|_1)."""
@@ -390,7 +390,7 @@ def _side_range(points, faces, h, other, m, o, shared):
     return lo, hi
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _plane_separates(points, faces, f, g, m, o, shared):
     """Whether the plane through point ``o`` with normal ``m`` has face f strictly on one side and face g strictly
     on the other (but for their shared vertex ``o`` when ``shared``), by more than the rounding of the side values.
@@ -428,7 +428,7 @@ def _apart_by_a_plane(points, faces, f, g, shared):
             e = v3.sub(v3.row(points, b), v3.row(points, a))
             m = v3.cross(e, c)  # in h's plane, away from h
             if not shared:
-                if _plane_separates(points, faces, f, g, m, v3.row(points, a), 0):
+                if _plane_separates(points, faces, f, g, m, v3.row(points, a), np.int64(0)):
                     return True
                 continue
             m1 = abs(m[0]) + abs(m[1]) + abs(m[2])
@@ -437,7 +437,8 @@ def _apart_by_a_plane(points, faces, f, g, shared):
             for end in range(2):
                 v, far = (a, e) if end == 0 else (b, v3.scale(e, -1.0))
                 if v == faces[other, 0] or v == faces[other, 1] or v == faces[other, 2]:
-                    if _plane_separates(points, faces, f, g, v3.sub(m, v3.scale(far, turn)), v3.row(points, v), 1):
+                    tilted = v3.sub(m, v3.scale(far, turn))
+                    if _plane_separates(points, faces, f, g, tilted, v3.row(points, v), np.int64(1)):
                         return True
     return False
 
@@ -512,7 +513,7 @@ def _face_planes(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _one_side(points, faces, planes, f, g, shared):
     """Whether face g lies strictly on one side of face f's plane, by more than the rounding (a float test that
     never rejects a pair an exact test would call touching); with ``shared`` = 1, whether its two vertices that

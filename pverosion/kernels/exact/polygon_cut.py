@@ -907,7 +907,7 @@ def cut_triangle(
     for i in range(3, n):
         if location[i] < LOCATION_EDGE or location[i] > LOCATION_INTERIOR:
             return _empty_result()
-    if _orient(xy, 0, 1, 2) <= 0.0:
+    if _orient(xy, np.int64(0), np.int64(1), np.int64(2)) <= 0.0:  # not literals: one compiled variant
         return _empty_result()
 
     # planar graph and its faces

@@ -72,6 +72,28 @@ _NEEDLE, _CAP = 0, 1
 
 
 @njit(cache=True, error_model="numpy")
+def _face_candidate(points, faces, f, needle, cap_height, cap_cos, length):
+    """Whether face f is a needle or a cap, with its sort key, kind and corner (see :func:`_candidates`);
+    ``length`` (3,) is scratch space."""
+    p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
+    length[0] = v3.norm(v3.sub(p1, p0))
+    length[1] = v3.norm(v3.sub(p2, p1))
+    length[2] = v3.norm(v3.sub(p0, p2))
+    short = np.argmin(length)
+    if length[short] < needle:
+        return True, length[short] / needle, _NEEDLE, short
+    long = np.argmax(length)
+    apex = p2 if long == 0 else (p0 if long == 1 else p1)
+    e0 = v3.sub(p0 if long == 0 else (p1 if long == 1 else p2), apex)
+    e1 = v3.sub(p1 if long == 0 else (p2 if long == 1 else p0), apex)
+    height = v3.norm(v3.cross(e0, e1)) / length[long]
+    cos_apex = v3.dot(e0, e1) / (v3.norm(e0) * v3.norm(e1))
+    if height <= cap_height or cos_apex < cap_cos:
+        return True, 2.0 + cos_apex, _CAP, long
+    return False, 0.0, _NEEDLE, short
+
+
+@njit(cache=True, error_model="numpy")
 def _candidates(points, faces, needle, cap_height, cap_cos):
     """Faces to fix, needles (shortest edge first) before caps (most obtuse first): (face, kind, corner), the edge
     to act on running from ``corner`` to the next corner (a needle's shortest edge, a cap's longest)."""
@@ -83,26 +105,22 @@ def _candidates(points, faces, needle, cap_height, cap_cos):
     length = np.empty(3)
     n = 0
     for f in range(n_faces):
-        p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
-        length[0] = v3.norm(v3.sub(p1, p0))
-        length[1] = v3.norm(v3.sub(p2, p1))
-        length[2] = v3.norm(v3.sub(p0, p2))
-        short = np.argmin(length)
-        if length[short] < needle:
-            key[n], face[n], kind[n], corner[n] = length[short] / needle, f, _NEEDLE, short
-            n += 1
-            continue
-        long = np.argmax(length)
-        apex = p2 if long == 0 else (p0 if long == 1 else p1)
-        e0 = v3.sub(p0 if long == 0 else (p1 if long == 1 else p2), apex)
-        e1 = v3.sub(p1 if long == 0 else (p2 if long == 1 else p0), apex)
-        height = v3.norm(v3.cross(e0, e1)) / length[long]
-        cos_apex = v3.dot(e0, e1) / (v3.norm(e0) * v3.norm(e1))
-        if height <= cap_height or cos_apex < cap_cos:
-            key[n], face[n], kind[n], corner[n] = 2.0 + cos_apex, f, _CAP, long
+        found, key[n], kind[n], corner[n] = _face_candidate(points, faces, f, needle, cap_height, cap_cos, length)
+        if found:
+            face[n] = f
             n += 1
     order = np.argsort(key[:n], kind="mergesort")
     return face[order], kind[order], corner[order]
+
+
+@njit(cache=True, error_model="numpy")
+def _has_candidate(points, faces, needle, cap_height, cap_cos):
+    """Whether :func:`_candidates` would find a face; compiles in a fraction of the time of the pass."""
+    length = np.empty(3)
+    for f in range(faces.shape[0]):
+        if _face_candidate(points, faces, f, needle, cap_height, cap_cos, length)[0]:
+            return True
+    return False
 
 
 @njit(cache=True, error_model="numpy")
@@ -387,6 +405,8 @@ def remove_degenerate_faces(
     cap_cos = -2.0 if max_angle is None else float(np.cos(np.radians(max_angle)))
     crease_cos = float(np.cos(np.radians(crease_angle)))
     totals = np.zeros(3, np.int64)
+    if not _has_candidate(pts, fcs, float(needle_length), float(cap_height), cap_cos):
+        max_passes = 0  # no needle or cap: the mesh stays as it is, without compiling the pass kernel
     for _ in range(max_passes):
         keys, degree = _curve_edges(lines, len(pts))
         (new_pts, new_fcs, alive, merged, parent, curve, splits, *counts) = _pass(

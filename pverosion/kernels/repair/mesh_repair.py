@@ -608,7 +608,7 @@ def _split_touching(points, faces, twins):
 
 def _shells(points, faces):
     """Shell (edge-connected part) of every face (F,), and the signed volume and area of every shell."""
-    shell = _patches(faces, len(points), np.zeros(0, np.int64))
+    shell = _patches(faces, len(points), np.zeros(0, np.int64), False)
     tri = points[faces]
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     n = shell.max() + 1 if len(shell) else 0
