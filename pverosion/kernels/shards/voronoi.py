@@ -190,10 +190,6 @@ def _clip(verts, edges, count, label, nf, n, d, new_label, scratch):
 def seed_grid(seeds: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Bucket the seeds on a uniform grid of about one seed per bucket.
 
-    When the seeds fill less than half of the box's buckets (seeds inside a
-    mesh, say), the buckets are made finer, to up to 8 times as many, so that
-    the occupied ones hold about one seed each.
-
     Returns
     -------
     start : numpy.ndarray of int64, shape (n_buckets + 1,)
@@ -204,16 +200,9 @@ def seed_grid(seeds: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.nda
         Bucket edge.
     """
     extent = hi - lo
-    seeds = np.ascontiguousarray(seeds, dtype=np.float64)
-    lo = np.asarray(lo, np.float64)
     size = float((np.prod(extent) / max(len(seeds), 1)) ** (1.0 / 3.0))
     dims = grid_over(lo, hi, size)
-    start, order = bucket_points(seeds, lo, size, dims)
-    occupied = np.count_nonzero(np.diff(start)) / (len(start) - 1)
-    if occupied < 0.5:  # seeds filling part of the box (e.g. the inside of a mesh): finer, to their density
-        size *= max(occupied ** (1.0 / 3.0), 0.5)
-        dims = grid_over(lo, hi, size)
-        start, order = bucket_points(seeds, lo, size, dims)
+    start, order = bucket_points(np.ascontiguousarray(seeds, dtype=np.float64), np.asarray(lo, np.float64), size, dims)
     return start, order, dims, size
 
 
