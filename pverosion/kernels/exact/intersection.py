@@ -578,6 +578,19 @@ def _box_pairs(points, faces, planes, lo, hi, ok, group, query, origin, inv_h, s
     return out
 
 
+def _near_query(lo: np.ndarray, hi: np.ndarray, ok: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, int]:
+    """``ok`` (F,) narrowed to the faces whose boxes (``lo``, ``hi`` (F, 3)) meet the box around the queried
+    usable faces (only they can meet a queried face), and its count; none when no usable face is queried."""
+    queried = query & ok
+    if not queried.any():
+        return np.zeros_like(ok), 0
+    top, bottom = hi[queried].max(axis=0), lo[queried].min(axis=0)
+    near = ok.copy()
+    for d in range(3):  # column by column: np.all over rows of three is slow
+        near &= (lo[:, d] <= top[d]) & (hi[:, d] >= bottom[d])
+    return near, int(np.count_nonzero(near))
+
+
 def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     """Pairs of non-degenerate faces that may meet and share no edge (broad phase).
 
@@ -615,14 +628,7 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
         raise ValueError(f"query must have shape ({len(fcs)},); got {wanted.shape}")
     lo, hi, ok, origin, inv_h, _, n_ok = _face_boxes(pts, fcs)
     if query is not None and n_ok:
-        # a pair has a queried face: the other face's box meets the box around the queried faces
-        queried = wanted & ok
-        if not queried.any():
-            return np.zeros((0, 2), np.int64)
-        top, bottom = hi[queried].max(axis=0), lo[queried].min(axis=0)
-        for d in range(3):  # column by column: np.all over rows of three is slow
-            ok &= (lo[:, d] <= top[d]) & (hi[:, d] >= bottom[d])
-        n_ok = int(np.count_nonzero(ok))
+        ok, n_ok = _near_query(lo, hi, ok, wanted)
     if n_ok == 0:
         return np.zeros((0, 2), np.int64)
     size = 4 * n_ok + 1
@@ -685,16 +691,8 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
     lo, hi, ok, origin, inv_h, _, n_ok = _face_boxes(pts, local)
     hits = np.zeros(len(fcs), bool)
     local_query = q[order]
-    if query is not None and n_ok:
-        # only faces whose boxes meet the box around the queried faces can meet one: the grid holds just those
-        # (few when the query is local, as after a step that moved the vertices in one place)
-        queried = ok & local_query
-        if queried.any():
-            ql, qh = lo[queried].min(axis=0), hi[queried].max(axis=0)
-            ok = ok & (lo <= qh).all(axis=1) & (hi >= ql).all(axis=1)
-            n_ok = int(np.count_nonzero(ok))
-        else:
-            n_ok = 0
+    if query is not None and n_ok:  # the grid holds few faces when the query is local (vertices moved in one place)
+        ok, n_ok = _near_query(lo, hi, ok, local_query)
     if n_ok == 0:
         return hits
     size = 4 * n_ok + 1
