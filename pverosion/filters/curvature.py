@@ -14,6 +14,7 @@ from pverosion.filters.base import (
 )
 from pverosion.kernels.curvature.normalize import NORMALIZATIONS, normalize_curvature
 from pverosion.kernels.curvature.operator import CurvatureOperator, principal_curvatures
+from pverosion.kernels.mesh.locality import locality_renumbering
 from pverosion.kernels.mesh.orientation import ORIENTATIONS, orient_sorted
 from pverosion.kernels.validation import as_triangle_mesh
 
@@ -60,10 +61,16 @@ class Curvature(ErosionFilter):
             n_flipped = 0
             result = principal_curvatures(points, faces)
         else:
-            # the orientation's faces come sorted the way the curvature operator sorts them
-            oriented = orient_sorted(points, faces, mode=mode)
+            # the orientation's faces come sorted the way the curvature operator sorts them, in the
+            # same vertex numbering (the caller's, or the Morton order of a mesh of poor locality)
+            renumbering = locality_renumbering(points, faces)
+            if renumbering is None:
+                oriented = orient_sorted(points, faces, mode=mode)
+            else:
+                oriented = orient_sorted(renumbering.to_local(points), renumbering.faces(faces), mode=mode)
             n_flipped = oriented.n_flipped
-            result = CurvatureOperator.from_sorted(oriented.faces, len(points))(points)
+            operator = CurvatureOperator.from_sorted(oriented.faces, len(points), renumbering=renumbering)
+            result = operator(points)
         out.ShallowCopy(inp)
         if n_flipped:
             replace_triangles(out, oriented.input_faces(faces))

@@ -19,6 +19,7 @@ from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range, chunk_total
 from pverosion.kernels._threads import for_chunks, for_ranges
 from pverosion.kernels.mesh.geometry import face_normal_terms, mixed_corner_areas, vertex_normals
+from pverosion.kernels.mesh.locality import Renumbering, morton_renumbering, poor_locality
 from pverosion.kernels.mesh.topology import locality_sorted, vertex_face_incidence
 from pverosion.kernels.validation import InvalidMeshError, as_faces, as_points
 
@@ -250,24 +251,42 @@ def _diagonalise(nrm, u, ku, kuv, kv, total):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _curvature_range(normals, tangents, acc, k1, k2, d1, d2, area, start, stop):
-    """Average the corner tensors of vertices ``start`` to ``stop`` and diagonalise them."""
+def _curvature_range(normals, tangents, acc, order, k1, k2, d1, d2, area, normals_out, start, stop):
+    """Average the corner tensors of vertices ``start`` to ``stop`` and diagonalise them.
+
+    With a non-empty ``order`` the results of vertex ``i`` go to row
+    ``order[i]`` (the caller's numbering) and its normal to ``normals_out``;
+    else to row ``i``.
+    """
+    restore = order.shape[0] > 0
     for i in range(start, stop):
+        o = order[i] if restore else i
         total = chunk_total(acc, i, 3)
-        area[i] = total
-        k1[i], k2[i], p1, p2 = _diagonalise(v3.row(normals, i), v3.row(tangents, i), chunk_total(acc, i, 0),
+        area[o] = total
+        k1[o], k2[o], p1, p2 = _diagonalise(v3.row(normals, i), v3.row(tangents, i), chunk_total(acc, i, 0),
                                             chunk_total(acc, i, 1), chunk_total(acc, i, 2), total)
-        v3.store(d1, i, p1)
-        v3.store(d2, i, p2)
+        v3.store(d1, o, p1)
+        v3.store(d2, o, p2)
+        if restore:
+            v3.store(normals_out, o, v3.row(normals, i))
 
 
-def _vertex_curvatures(normals: np.ndarray, tangents: np.ndarray, acc: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Average the corner tensors of every vertex and diagonalise them: (k1, k2, d1, d2, area)."""
+def _vertex_curvatures(normals: np.ndarray, tangents: np.ndarray, acc: np.ndarray,
+                       order: np.ndarray | None) -> CurvatureResult:
+    """Average the corner tensors of every vertex and diagonalise them.
+
+    ``order`` (V,) maps the local vertex numbering to the caller's, in which
+    the result is returned; None keeps the numbering.
+    """
     n_vertices = normals.shape[0]
-    k1, k2, area = np.zeros(n_vertices), np.zeros(n_vertices), np.zeros(n_vertices)
-    d1, d2 = np.zeros((n_vertices, 3)), np.zeros((n_vertices, 3))
-    for_ranges(_curvature_range, n_vertices, normals, tangents, acc, k1, k2, d1, d2, area)
-    return k1, k2, d1, d2, area
+    k1, k2, area = np.empty(n_vertices), np.empty(n_vertices), np.empty(n_vertices)
+    d1, d2 = np.empty((n_vertices, 3)), np.empty((n_vertices, 3))
+    if order is None:
+        order, normals_out = np.empty(0, np.int64), normals
+    else:
+        normals_out = np.empty_like(normals)
+    for_ranges(_curvature_range, n_vertices, normals, tangents, acc, order, k1, k2, d1, d2, area, normals_out)
+    return CurvatureResult(k1=k1, k2=k2, direction1=d1, direction2=d2, normals=normals_out, point_areas=area)
 
 
 # --- tracking: recompute around the points that moved ----------------------------------------------------------
@@ -428,8 +447,15 @@ class CurvatureOperator:
 
     Building it validates the faces and sorts them for memory locality once;
     calling it with new point coordinates costs only the per-step passes.
-    Results are bit-identical whatever the number of threads. Use it when the points move but the faces stay
-    (iterative erosion), or call :func:`principal_curvatures` for one shot.
+    When the corners of the faces lie far apart in the vertex numbering
+    (:func:`~pverosion.kernels.mesh.locality.poor_locality`, as after Loop
+    subdivision), the first call also numbers the vertices along the Morton
+    curve of its points (:func:`~pverosion.kernels.mesh.locality.morton_renumbering`);
+    every call then evaluates in that numbering and returns the results in
+    the caller's vertex order. Results are bit-identical whatever the number
+    of threads and the order of the faces. Use it when the points move but
+    the faces stay (iterative erosion), or call :func:`principal_curvatures`
+    for one shot.
 
     Parameters
     ----------
@@ -438,6 +464,14 @@ class CurvatureOperator:
         normals they imply (see :func:`pverosion.kernels.mesh.orientation.orient_faces`).
     n_vertices : int
         Number of mesh vertices V.
+
+    Attributes
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64, or None
+        The faces sorted by their smallest vertex, in the local numbering;
+        None before the first call of an operator that renumbers.
+    renumbering : Renumbering or None
+        The local vertex numbering, None while it is the caller's.
 
     Examples
     --------
@@ -456,10 +490,13 @@ class CurvatureOperator:
             raise InvalidMeshError("mesh is empty: it has no points")
         fcs = as_faces(faces, n_vertices)
         self.n_vertices = n_vertices
-        self.faces = locality_sorted(fcs, n_vertices)[1]
+        self.renumbering: Renumbering | None = None
+        self._scattered = fcs if poor_locality(fcs, n_vertices) else None
+        self.faces = None if self._scattered is not None else locality_sorted(fcs, n_vertices)[1]
 
     @classmethod
-    def from_sorted(cls, faces: np.ndarray, n_vertices: int) -> CurvatureOperator:
+    def from_sorted(cls, faces: np.ndarray, n_vertices: int, *,
+                    renumbering: Renumbering | None = None) -> CurvatureOperator:
         """An operator on faces already validated and sorted by their smallest vertex (stable).
 
         The faces of :func:`~pverosion.kernels.mesh.orientation.orient_sorted` are;
@@ -468,10 +505,16 @@ class CurvatureOperator:
         Parameters
         ----------
         faces : numpy.ndarray, shape (F, 3), int64
+            In the local numbering of ``renumbering`` when it is given.
         n_vertices : int
+        renumbering : Renumbering, optional
+            The numbering of ``faces``; the operator takes and returns per-vertex
+            arrays in the caller's order, as one that renumbered itself.
         """
         operator = cls.__new__(cls)
         operator.n_vertices = int(n_vertices)
+        operator.renumbering = renumbering
+        operator._scattered = None
         operator.faces = faces
         return operator
 
@@ -483,16 +526,25 @@ class CurvatureOperator:
         return self._evaluate(pts, normals)
 
     def _evaluate(self, pts: np.ndarray, normals) -> CurvatureResult:
-        """The estimate on already validated points (V, 3) float64."""
-        if normals is None:
-            nrm = vertex_normals(pts, self.faces, weighting="max")
-        else:
+        """The estimate on already validated points (V, 3) float64, in their order."""
+        nrm = None
+        if normals is not None:
             nrm = np.ascontiguousarray(normals, dtype=np.float64)
             if nrm.shape != pts.shape:
                 raise ValueError(f"normals must have shape {pts.shape}; got {nrm.shape}")
+        if self._scattered is not None:
+            self.renumbering = morton_renumbering(pts)
+            self.faces = locality_sorted(self.renumbering.faces(self._scattered), self.n_vertices)[1]
+            self._scattered = None
+        ren = self.renumbering
+        if ren is not None:
+            pts = ren.to_local(pts)
+            nrm = None if nrm is None else ren.to_local(nrm)
+        if nrm is None:
+            nrm = vertex_normals(pts, self.faces, weighting="max")
         tangents = _vertex_tangents(nrm)
-        k1, k2, d1, d2, area = _vertex_curvatures(nrm, tangents, _vertex_tensors(pts, self.faces, nrm, tangents))
-        return CurvatureResult(k1=k1, k2=k2, direction1=d1, direction2=d2, normals=nrm, point_areas=area)
+        acc = _vertex_tensors(pts, self.faces, nrm, tangents)
+        return _vertex_curvatures(nrm, tangents, acc, None if ren is None else ren.order)
 
 
 def principal_curvatures(points, faces, *, normals=None) -> CurvatureResult:

@@ -19,6 +19,7 @@ from numba import njit
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range
 from pverosion.kernels._threads import for_chunks, for_ranges
+from pverosion.kernels.mesh.locality import locality_renumbering
 from pverosion.kernels.mesh.topology import sorted_twins
 
 __all__ = ["ORIENTATIONS", "Orientation", "SortedOrientation", "orient_faces", "orient_sorted", "winding_number"]
@@ -244,12 +245,21 @@ def orient_faces(
     A component whose closed volume is negligible (a flat or symmetric open
     sheet) keeps the orientation of its first face. Non-orientable
     components (a Möbius strip) keep whatever the propagation reached.
+    Meshes whose face corners lie far apart in the vertex numbering are
+    oriented in the numbering of
+    :func:`~pverosion.kernels.mesh.locality.locality_renumbering` (faster;
+    the same result for orientable components); "first" then refers to the
+    faces sorted in that numbering.
     """
     if mode not in ORIENTATIONS:
         raise ValueError(f"orientation must be one of {ORIENTATIONS}; got {mode!r}")
     if mode == "keep":
         return Orientation(faces, np.zeros(len(faces), bool), None, mode)
-    local = orient_sorted(points, faces, mode=mode)
+    renumbering = locality_renumbering(points, faces)
+    if renumbering is None:
+        local = orient_sorted(points, faces, mode=mode)
+    else:
+        local = orient_sorted(renumbering.to_local(points), renumbering.faces(faces), mode=mode)
     flipped = local.input_flip()
     out = _apply(faces, flipped) if local.n_flipped else faces.copy()
     return Orientation(out, flipped, _unsort(local.component, local.order), mode)

@@ -1,0 +1,225 @@
+"""Vertex renumbering for memory locality.
+
+Kernels that scatter from faces to vertices (curvature, normals, the twin
+search of the orientation) touch the three corners of every face. When the
+corners of a face sit far apart in the vertex arrays (Loop subdivision
+numbers every new edge vertex after all the old ones; some exporters shuffle
+vertices) each face touches distant cache lines, and the cost per face grows
+with the mesh. :func:`locality_renumbering` detects such meshes with one pass
+over the faces and numbers their vertices along a Morton (Z-order) curve of
+their positions; the kernels run in that numbering and the results are put
+back in the caller's vertex order.
+
+The order depends only on the positions (vertices in one grid cell keep their
+relative order), so it is the same for any face order, and the decision
+depends only on the set of faces.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from pverosion.kernels._threads import for_ranges
+
+__all__ = ["LOCAL_SPAN", "MORTON_BITS", "Renumbering", "locality_renumbering", "morton_renumbering",
+           "poor_locality"]
+
+LOCAL_SPAN = 8192
+"""Vertex-index span of a face's corners above which the face counts as scattered.
+
+Kernels keep about 200 bytes per vertex live (points, normals, frames and the
+scatter accumulators), so a span of 8192 vertices is about 1.6 MB, the order
+of a core's L2 cache."""
+
+MORTON_BITS = 6
+"""Bits per axis of the quantised positions whose Morton codes order the vertices (2^18 cells; the vertices
+of one cell keep their relative order, and a cell of a surface holds few enough of them to stay in cache)."""
+
+
+@njit(cache=True, error_model="numpy")
+def _scattered_faces(faces, span):
+    """Number of faces whose largest and smallest corner index differ by more than ``span``."""
+    count = 0
+    for f in range(faces.shape[0]):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        if max(a, b, c) - min(a, b, c) > span:
+            count += 1
+    return count
+
+
+def poor_locality(faces: np.ndarray, n_vertices: int) -> bool:
+    """Whether the median corner span of the faces exceeds :data:`LOCAL_SPAN` vertex indices.
+
+    One pass over all faces; the answer depends only on the set of faces, not
+    on their order or the order of their corners. Meshes with at most
+    :data:`LOCAL_SPAN` vertices are always local.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64
+        Validated triangles.
+    n_vertices : int
+        Number of vertices V.
+
+    Returns
+    -------
+    bool
+    """
+    if n_vertices <= LOCAL_SPAN or len(faces) == 0:
+        return False
+    return 2 * int(_scattered_faces(np.ascontiguousarray(faces), LOCAL_SPAN)) > len(faces)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _spread(x):
+    """The 10 low bits of ``x`` spread to every third bit (so MORTON_BITS is at most 10)."""
+    x &= 0x3FF
+    x = (x | (x << 16)) & 0x030000FF
+    x = (x | (x << 8)) & 0x0300F00F
+    x = (x | (x << 4)) & 0x030C30C3
+    return (x | (x << 2)) & 0x09249249
+
+
+@njit(cache=True, error_model="numpy")
+def _box(points):
+    """Lowest corner (3,) of the bounding box of ``points`` (V, 3) and the scale to 2^MORTON_BITS - 1 cells."""
+    lo = np.empty(3)
+    hi = np.empty(3)
+    for d in range(3):
+        lo[d] = hi[d] = points[0, d]
+    for v in range(points.shape[0]):
+        for d in range(3):
+            lo[d] = min(lo[d], points[v, d])
+            hi[d] = max(hi[d], points[v, d])
+    scale = np.zeros(3)
+    for d in range(3):
+        if hi[d] > lo[d]:
+            scale[d] = ((1 << MORTON_BITS) - 1) / (hi[d] - lo[d])
+    return lo, scale
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _code_range(points, lo, scale, codes, start, stop):
+    """Morton codes of the quantised positions of vertices ``start`` to ``stop``."""
+    cells = (1 << MORTON_BITS) - 1
+    for v in range(start, stop):
+        code = 0
+        for d in range(3):
+            q = int((points[v, d] - lo[d]) * scale[d])
+            code |= _spread(min(max(q, 0), cells)) << d
+        codes[v] = code
+
+
+@njit(cache=True, error_model="numpy")
+def _order_by_code(codes):
+    """Stable counting sort of the vertices by their codes: (order, rank)."""
+    n = codes.shape[0]
+    cells = 1 << (3 * MORTON_BITS)
+    start = np.zeros(cells + 1, np.int64)
+    for v in range(n):
+        start[codes[v] + 1] += 1
+    for b in range(cells):
+        start[b + 1] += start[b]
+    order = np.empty(n, np.int64)
+    rank = np.empty(n, np.int64)
+    for v in range(n):
+        key = codes[v]
+        order[start[key]] = v
+        rank[v] = start[key]
+        start[key] += 1
+    return order, rank
+
+
+@njit(cache=True, nogil=True)
+def _map_faces(faces, rank, out, start, stop):
+    for f in range(start, stop):
+        for k in range(3):
+            out[f, k] = rank[faces[f, k]]
+
+
+@njit(cache=True, nogil=True)
+def _take_rows(src, index, out, start, stop):
+    for i in range(start, stop):
+        j = index[i]
+        for d in range(src.shape[1]):
+            out[i, d] = src[j, d]
+
+
+def _take(values: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """``values[index]`` for float64 arrays (N,) or (N, K), gathered in parallel."""
+    src = np.ascontiguousarray(values, dtype=np.float64)
+    rows = src.reshape(len(src), -1)
+    out = np.empty((len(index), rows.shape[1]))
+    for_ranges(_take_rows, len(index), rows, index, out)
+    return out.reshape((len(index),) + src.shape[1:])
+
+
+@dataclass(frozen=True)
+class Renumbering:
+    """A vertex permutation and the maps between the caller's numbering and the local one.
+
+    Attributes
+    ----------
+    order : numpy.ndarray, shape (V,), int64
+        Local vertex ``i`` is the caller's vertex ``order[i]``.
+    rank : numpy.ndarray, shape (V,), int64
+        The caller's vertex ``v`` is local vertex ``rank[v]`` (the inverse of ``order``).
+    """
+
+    order: np.ndarray
+    rank: np.ndarray
+
+    def to_local(self, values: np.ndarray) -> np.ndarray:
+        """Per-vertex float64 ``values`` (V,) or (V, K) in the local order."""
+        return _take(values, self.order)
+
+    def to_caller(self, values: np.ndarray) -> np.ndarray:
+        """Per-vertex float64 ``values`` (V,) or (V, K) of the local numbering, in the caller's order."""
+        return _take(values, self.rank)
+
+    def faces(self, faces: np.ndarray) -> np.ndarray:
+        """The caller's ``faces`` (F, 3) int64 in local vertex indices, in the same face order."""
+        fcs = np.ascontiguousarray(faces, dtype=np.int64)
+        out = np.empty_like(fcs)
+        for_ranges(_map_faces, len(fcs), fcs, self.rank, out)
+        return out
+
+
+def morton_renumbering(points: np.ndarray) -> Renumbering:
+    """Vertices numbered along the Morton curve of their positions.
+
+    The positions are quantised to :data:`MORTON_BITS` bits per axis of their
+    bounding box; vertices in one cell keep their relative order.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3), float64
+
+    Returns
+    -------
+    Renumbering
+    """
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    lo, scale = _box(pts)
+    codes = np.empty(len(pts), np.int64)
+    for_ranges(_code_range, len(pts), pts, lo, scale, codes)
+    return Renumbering(*_order_by_code(codes))
+
+
+def locality_renumbering(points: np.ndarray, faces: np.ndarray) -> Renumbering | None:
+    """:func:`morton_renumbering` of a mesh of :func:`poor_locality`, else None.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3), float64
+    faces : numpy.ndarray, shape (F, 3), int64
+        Validated triangles.
+
+    Returns
+    -------
+    Renumbering or None
+    """
+    return morton_renumbering(points) if poor_locality(faces, len(points)) else None
