@@ -22,7 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from pverosion.kernels._threads import for_ranges
+from pverosion.kernels._scatter import CHUNKS, chunk_range
+from pverosion.kernels._threads import for_chunks, for_ranges
 
 __all__ = ["LOCAL_SPAN", "MORTON_BITS", "Renumbering", "locality_renumbering", "morton_renumbering",
            "poor_locality"]
@@ -83,54 +84,54 @@ def _spread(x):
     return (x | (x << 2)) & 0x09249249
 
 
-@njit(cache=True, error_model="numpy")
-def _box(points):
-    """Lowest corner (3,) of the bounding box of ``points`` (V, 3) and the scale to 2^MORTON_BITS - 1 cells."""
-    lo = np.empty(3)
-    hi = np.empty(3)
+@njit(cache=True, error_model="numpy", nogil=True)
+def _box_chunk(points, box, c):
+    """Lowest and highest coordinates of the points of chunk ``c`` into ``box[c]`` (2, 3)."""
+    start, stop = chunk_range(points.shape[0], c)
     for d in range(3):
-        lo[d] = hi[d] = points[0, d]
-    for v in range(points.shape[0]):
-        for d in range(3):
-            lo[d] = min(lo[d], points[v, d])
-            hi[d] = max(hi[d], points[v, d])
-    scale = np.zeros(3)
-    for d in range(3):
-        if hi[d] > lo[d]:
-            scale[d] = ((1 << MORTON_BITS) - 1) / (hi[d] - lo[d])
-    return lo, scale
+        lo = hi = points[start, d] if stop > start else 0.0
+        for v in range(start, stop):
+            lo = min(lo, points[v, d])
+            hi = max(hi, points[v, d])
+        box[c, 0, d] = lo
+        box[c, 1, d] = hi
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _code_range(points, lo, scale, codes, start, stop):
-    """Morton codes of the quantised positions of vertices ``start`` to ``stop``."""
+def _code_chunk(points, lo, scale, codes, counts, c):
+    """Morton codes of the quantised positions of the vertices of chunk ``c``, and their histogram ``counts[c]``."""
     cells = (1 << MORTON_BITS) - 1
+    start, stop = chunk_range(points.shape[0], c)
     for v in range(start, stop):
         code = 0
         for d in range(3):
             q = int((points[v, d] - lo[d]) * scale[d])
             code |= _spread(min(max(q, 0), cells)) << d
         codes[v] = code
+        counts[c, code] += 1
 
 
 @njit(cache=True, error_model="numpy")
-def _order_by_code(codes):
-    """Stable counting sort of the vertices by their codes: (order, rank)."""
-    n = codes.shape[0]
-    cells = 1 << (3 * MORTON_BITS)
-    start = np.zeros(cells + 1, np.int64)
-    for v in range(n):
-        start[codes[v] + 1] += 1
-    for b in range(cells):
-        start[b + 1] += start[b]
-    order = np.empty(n, np.int64)
-    rank = np.empty(n, np.int64)
-    for v in range(n):
+def _offsets(counts):
+    """First slot (CHUNKS, B) of every chunk's vertices of every code in the stable order by code."""
+    slots = np.empty_like(counts)
+    total = 0
+    for b in range(counts.shape[1]):
+        for c in range(counts.shape[0]):
+            slots[c, b] = total
+            total += counts[c, b]
+    return slots
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _place_chunk(codes, slots, order, rank, c):
+    """Put the vertices of chunk ``c`` at their slots of the stable order by code."""
+    start, stop = chunk_range(codes.shape[0], c)
+    for v in range(start, stop):
         key = codes[v]
-        order[start[key]] = v
-        rank[v] = start[key]
-        start[key] += 1
-    return order, rank
+        order[slots[c, key]] = v
+        rank[v] = slots[c, key]
+        slots[c, key] += 1
 
 
 @njit(cache=True, nogil=True)
@@ -203,10 +204,20 @@ def morton_renumbering(points: np.ndarray) -> Renumbering:
     Renumbering
     """
     pts = np.ascontiguousarray(points, dtype=np.float64)
-    lo, scale = _box(pts)
-    codes = np.empty(len(pts), np.int64)
-    for_ranges(_code_range, len(pts), pts, lo, scale, codes)
-    return Renumbering(*_order_by_code(codes))
+    n = len(pts)
+    box = np.empty((CHUNKS, 2, 3))
+    for_chunks(_box_chunk, n, pts, box)
+    filled = [c for c in range(CHUNKS) if chunk_range(n, c)[1] > chunk_range(n, c)[0]]
+    lo, hi = box[filled, 0].min(axis=0), box[filled, 1].max(axis=0)
+    extent = hi - lo
+    scale = np.where(extent > 0.0, ((1 << MORTON_BITS) - 1) / np.where(extent > 0.0, extent, 1.0), 0.0)
+    codes = np.empty(n, np.int64)
+    counts = np.zeros((CHUNKS, 1 << (3 * MORTON_BITS)), np.int64)
+    for_chunks(_code_chunk, n, pts, lo, scale, codes, counts)
+    slots = _offsets(counts)
+    order, rank = np.empty(n, np.int64), np.empty(n, np.int64)
+    for_chunks(_place_chunk, n, codes, slots, order, rank)
+    return Renumbering(order, rank)
 
 
 def locality_renumbering(points: np.ndarray, faces: np.ndarray) -> Renumbering | None:
