@@ -35,8 +35,8 @@ Kernels keep about 200 bytes per vertex live (points, normals, frames and the
 scatter accumulators), so a span of 8192 vertices is about 1.6 MB, the order
 of a core's L2 cache."""
 
-MORTON_BITS = 6
-"""Bits per axis of the quantised positions whose Morton codes order the vertices (2^18 cells; the vertices
+MORTON_BITS = 5
+"""Bits per axis of the quantised positions whose Morton codes order the vertices (2^15 cells; the vertices
 of one cell keep their relative order, and a cell of a surface holds few enough of them to stay in cache)."""
 
 
