@@ -15,6 +15,7 @@ from pverosion.kernels.mesh.locality import (
     poor_locality,
 )
 from pverosion.kernels.mesh.orientation import orient_faces
+from pverosion.kernels.mesh.topology import locality_sorted
 
 
 def _shuffled(points, faces, seed):
@@ -65,6 +66,7 @@ def test_morton_renumbering_is_the_stable_order_of_the_cell_codes(bumpy):
     faces = bumpy[1]
     assert np.array_equal(ren.to_local(points)[ren.faces(faces)], points[faces])
     assert np.array_equal(ren.to_caller(ren.to_local(points)), points)
+    assert np.array_equal(ren.sorted_faces(faces), locality_sorted(ren.faces(faces), len(points))[1])
     assert np.median(np.ptp(ren.faces(faces), axis=1)) < np.median(np.ptp(faces, axis=1)) / 100
 
 

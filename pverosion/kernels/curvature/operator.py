@@ -534,7 +534,7 @@ class CurvatureOperator:
                 raise ValueError(f"normals must have shape {pts.shape}; got {nrm.shape}")
         if self._scattered is not None:
             self.renumbering = morton_renumbering(pts)
-            self.faces = locality_sorted(self.renumbering.faces(self._scattered), self.n_vertices)[1]
+            self.faces = self.renumbering.sorted_faces(self._scattered)
             self._scattered = None
         ren = self.renumbering
         if ren is not None:

@@ -141,6 +141,25 @@ def _map_faces(faces, rank, out, start, stop):
             out[f, k] = rank[faces[f, k]]
 
 
+@njit(cache=True, error_model="numpy")
+def _renumbered_sorted(faces, rank):
+    """``rank[faces]`` sorted by smallest vertex (a stable counting sort), without the unsorted copy."""
+    n_vertices = rank.shape[0]
+    start = np.zeros(n_vertices + 1, np.int64)
+    for f in range(faces.shape[0]):
+        start[min(rank[faces[f, 0]], rank[faces[f, 1]], rank[faces[f, 2]]) + 1] += 1
+    for v in range(n_vertices):
+        start[v + 1] += start[v]
+    out = np.empty_like(faces)
+    for f in range(faces.shape[0]):
+        a, b, c = rank[faces[f, 0]], rank[faces[f, 1]], rank[faces[f, 2]]
+        lo = min(a, b, c)
+        row = start[lo]
+        out[row, 0], out[row, 1], out[row, 2] = a, b, c
+        start[lo] += 1
+    return out
+
+
 @njit(cache=True, nogil=True)
 def _take_rows(src, index, out, start, stop):
     for i in range(start, stop):
@@ -187,6 +206,21 @@ class Renumbering:
         out = np.empty_like(fcs)
         for_ranges(_map_faces, len(fcs), fcs, self.rank, out)
         return out
+
+    def sorted_faces(self, faces: np.ndarray) -> np.ndarray:
+        """:meth:`faces` sorted by their smallest (local) vertex, stable: equal to
+        ``locality_sorted(self.faces(faces), V)[1]``, in one counting sort.
+
+        Parameters
+        ----------
+        faces : numpy.ndarray, shape (F, 3), int64
+            Validated triangles in the caller's numbering.
+
+        Returns
+        -------
+        numpy.ndarray, shape (F, 3), int64
+        """
+        return _renumbered_sorted(np.ascontiguousarray(faces, dtype=np.int64), self.rank)
 
 
 def morton_renumbering(points: np.ndarray) -> Renumbering:
