@@ -453,9 +453,8 @@ class CurvatureOperator:
     curve of its points (:func:`~pverosion.kernels.mesh.locality.morton_renumbering`);
     every call then evaluates in that numbering and returns the results in
     the caller's vertex order. Results are bit-identical whatever the number
-    of threads and the order of the faces. Use it when the points move but
-    the faces stay (iterative erosion), or call :func:`principal_curvatures`
-    for one shot.
+    of threads. Use it when the points move but the faces stay (iterative
+    erosion), or call :func:`principal_curvatures` for one shot.
 
     Parameters
     ----------

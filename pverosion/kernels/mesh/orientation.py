@@ -247,9 +247,10 @@ def orient_faces(
     components (a Möbius strip) keep whatever the propagation reached.
     Meshes whose face corners lie far apart in the vertex numbering are
     oriented in the numbering of
-    :func:`~pverosion.kernels.mesh.locality.locality_renumbering` (faster;
-    the same result for orientable components); "first" then refers to the
-    faces sorted in that numbering.
+    :func:`~pverosion.kernels.mesh.locality.locality_renumbering`, as the
+    curvature filter orients them (the result is the same for orientable
+    components in any numbering); "first" then refers to the faces sorted
+    in that numbering.
     """
     if mode not in ORIENTATIONS:
         raise ValueError(f"orientation must be one of {ORIENTATIONS}; got {mode!r}")
