@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._threads import for_ranges
 from pverosion.kernels.mesh.topology import _incidence, edge_topology, one_ring
 
 __all__ = [
@@ -228,20 +229,15 @@ def _collapse_plan(points, faces, indptr, face_ids, cand_a, cand_b, locked):
     return pairs[:n_done].copy(), where[:n_done].copy()
 
 
-@njit(cache=True, error_model="numpy")
-def _short_edges(points, edges, usable, min_length):
-    n = 0
-    out = np.empty(edges.shape[0], np.int64)
-    length = np.empty(edges.shape[0])
-    for e in range(edges.shape[0]):
-        if not usable[e]:
-            continue
-        d = v3.norm(v3.sub(v3.row(points, edges[e, 0]), v3.row(points, edges[e, 1])))
-        if d < min_length:
-            out[n] = e
-            length[n] = d
-            n += 1
-    return out[:n], length[:n]
+@njit(cache=True, error_model="numpy", nogil=True)
+def _short_range(points, edges, usable, min_length, length, start, stop):
+    """Length of edges ``start`` to ``stop`` when usable and shorter than ``min_length``, else inf."""
+    for e in range(start, stop):
+        length[e] = np.inf
+        if usable[e]:
+            d = v3.norm(v3.sub(v3.row(points, edges[e, 0]), v3.row(points, edges[e, 1])))
+            if d < min_length:
+                length[e] = d
 
 
 def short_edge_candidates(points: np.ndarray, edges: np.ndarray, usable: np.ndarray, min_length: float) -> np.ndarray:
@@ -259,8 +255,11 @@ def short_edge_candidates(points: np.ndarray, edges: np.ndarray, usable: np.ndar
     -------
     numpy.ndarray, shape (K, 2), int64
     """
-    ids, length = _short_edges(points, edges, usable, float(min_length))
-    return edges[ids[np.argsort(length, kind="stable")]]
+    length = np.empty(len(edges))
+    for_ranges(_short_range, len(edges), np.ascontiguousarray(points, dtype=np.float64), edges, usable,
+               float(min_length), length)
+    ids = np.flatnonzero(length < np.inf)
+    return edges[ids[np.argsort(length[ids], kind="stable")]]
 
 
 def plan_collapses(points: np.ndarray, faces: np.ndarray, candidates: np.ndarray, locked: np.ndarray, *,
@@ -293,23 +292,33 @@ def plan_collapses(points: np.ndarray, faces: np.ndarray, candidates: np.ndarray
 
 
 @njit(cache=True, error_model="numpy")
+def _dies(faces, target, f):
+    """Whether face f comes to repeat a vertex when every vertex v merges into ``target[v]``."""
+    a, b, c = target[faces[f, 0]], target[faces[f, 1]], target[faces[f, 2]]
+    repeats = faces[f, 0] == faces[f, 1] or faces[f, 1] == faces[f, 2] or faces[f, 0] == faces[f, 2]
+    return (a == b or b == c or a == c) and not repeats
+
+
+@njit(cache=True, error_model="numpy")
 def _merged_faces(faces, target, new_index):
     """Faces after merging every vertex v into ``target[v]``, renumbered by ``new_index``; the faces that a merge
     makes repeat a vertex (the two on each collapsed edge) die. Returns the new faces and the new index of every
     face (-1 for those that die)."""
     n = faces.shape[0]
-    new_face = np.full(n, -1, np.int64)
-    out = np.empty((n, 3), np.int64)
+    new_face = np.empty(n, np.int64)
     m = 0
     for f in range(n):
-        a, b, c = target[faces[f, 0]], target[faces[f, 1]], target[faces[f, 2]]
-        merged = a == b or b == c or a == c
-        if merged and not (faces[f, 0] == faces[f, 1] or faces[f, 1] == faces[f, 2] or faces[f, 0] == faces[f, 2]):
-            continue
-        out[m, 0], out[m, 1], out[m, 2] = new_index[a], new_index[b], new_index[c]
-        new_face[f] = m
-        m += 1
-    return out[:m].copy(), new_face
+        if _dies(faces, target, f):
+            new_face[f] = -1
+        else:
+            new_face[f] = m
+            m += 1
+    out = np.empty((m, 3), np.int64)
+    for f in range(n):
+        if new_face[f] >= 0:
+            for k in range(3):
+                out[new_face[f], k] = new_index[target[faces[f, k]]]
+    return out, new_face
 
 
 def apply_collapses(points: np.ndarray, faces: np.ndarray, pairs: np.ndarray,
@@ -393,6 +402,21 @@ def _merged_row(indptr, indices, first, second, value_map, drop, buffer):
 
 
 @njit(cache=True, error_model="numpy")
+def _mapped_row(indptr, indices, r, value_map, drop, out, at):
+    """Copy old row r mapped by ``value_map`` to ``out`` from ``at`` when the values stay sorted, distinct, not
+    negative and not ``drop`` (rows far from every collapse); returns whether they did."""
+    last = -1
+    for s in range(indptr[r], indptr[r + 1]):
+        x = value_map[indices[s]]
+        if x <= last or x == drop:
+            return False
+        if out.shape[0] > 0:
+            out[at + s - indptr[r]] = x
+        last = x
+    return True
+
+
+@njit(cache=True, error_model="numpy")
 def _merged_rows(indptr, indices, rows, extra, value_map, drop_self):
     """Rows of a CSR table after collapses: new row i holds the old rows ``rows[i]`` and ``extra[i]`` (the row
     merged into it, or -1), each value x replaced by ``value_map[x]``, without negatives (and ``i`` itself when
@@ -402,23 +426,21 @@ def _merged_rows(indptr, indices, rows, extra, value_map, drop_self):
     for v in range(indptr.shape[0] - 1):
         longest = max(longest, indptr[v + 1] - indptr[v])
     buffer = np.empty(2 * longest, np.int64)
+    none = np.empty(0, np.int64)
     count = np.zeros(n + 1, np.int64)
     for i in range(n):
-        count[i + 1] = count[i] + _merged_row(indptr, indices, rows[i], extra[i], value_map,
-                                              i if drop_self else -1, buffer)
+        drop = i if drop_self else -1
+        if extra[i] < 0 and _mapped_row(indptr, indices, rows[i], value_map, drop, none, 0):
+            m = indptr[rows[i] + 1] - indptr[rows[i]]
+        else:
+            m = _merged_row(indptr, indices, rows[i], extra[i], value_map, drop, buffer)
+        count[i + 1] = count[i] + m
     out = np.empty(count[n], np.int64)
     for i in range(n):
-        if extra[i] < 0 and count[i + 1] - count[i] == indptr[rows[i] + 1] - indptr[rows[i]]:
-            # nothing merged here and nothing dropped: the mapped values, still sorted and distinct
-            ok = True
-            for s in range(indptr[rows[i]], indptr[rows[i] + 1]):
-                x = value_map[indices[s]]
-                out[count[i] + s - indptr[rows[i]]] = x
-                if s > indptr[rows[i]] and x <= out[count[i] + s - indptr[rows[i]] - 1]:
-                    ok = False
-            if ok:
-                continue
-        m = _merged_row(indptr, indices, rows[i], extra[i], value_map, i if drop_self else -1, buffer)
+        drop = i if drop_self else -1
+        if extra[i] < 0 and _mapped_row(indptr, indices, rows[i], value_map, drop, out, count[i]):
+            continue
+        m = _merged_row(indptr, indices, rows[i], extra[i], value_map, drop, buffer)
         out[count[i]:count[i] + m] = buffer[:m]
     return count, out
 
