@@ -402,46 +402,47 @@ def _merged_row(indptr, indices, first, second, value_map, drop, buffer):
 
 
 @njit(cache=True, error_model="numpy")
-def _mapped_row(indptr, indices, r, value_map, drop, out, at):
-    """Copy old row r mapped by ``value_map`` to ``out`` from ``at`` when the values stay sorted, distinct, not
-    negative and not ``drop`` (rows far from every collapse); returns whether they did."""
-    last = -1
-    for s in range(indptr[r], indptr[r + 1]):
-        x = value_map[indices[s]]
-        if x <= last or x == drop:
-            return False
-        if out.shape[0] > 0:
-            out[at + s - indptr[r]] = x
-        last = x
-    return True
+def _near_collapses(ring_ptr, ring_idx, pairs, kept):
+    """Which kept vertices (by new index) are an end of a collapse or a neighbour of one: the only rows of the
+    one-rings and the vertex-face incidence that a collapse changes other than by renumbering."""
+    near = np.zeros(ring_ptr.shape[0] - 1, np.bool_)
+    for c in range(pairs.shape[0]):
+        for v in (pairs[c, 0], pairs[c, 1]):
+            near[v] = True
+            for s in range(ring_ptr[v], ring_ptr[v + 1]):
+                near[ring_idx[s]] = True
+    out = np.empty(kept.shape[0], np.bool_)
+    for i in range(kept.shape[0]):
+        out[i] = near[kept[i]]
+    return out
 
 
 @njit(cache=True, error_model="numpy")
-def _merged_rows(indptr, indices, rows, extra, value_map, drop_self):
+def _merged_rows(indptr, indices, rows, extra, near, value_map, drop_self):
     """Rows of a CSR table after collapses: new row i holds the old rows ``rows[i]`` and ``extra[i]`` (the row
     merged into it, or -1), each value x replaced by ``value_map[x]``, without negatives (and ``i`` itself when
-    ``drop_self``), sorted and each once."""
+    ``drop_self``), sorted and each once. Rows not ``near`` a collapse keep their values' order and count."""
     n = rows.shape[0]
     longest = 0
     for v in range(indptr.shape[0] - 1):
         longest = max(longest, indptr[v + 1] - indptr[v])
     buffer = np.empty(2 * longest, np.int64)
-    none = np.empty(0, np.int64)
     count = np.zeros(n + 1, np.int64)
     for i in range(n):
-        drop = i if drop_self else -1
-        if extra[i] < 0 and _mapped_row(indptr, indices, rows[i], value_map, drop, none, 0):
-            m = indptr[rows[i] + 1] - indptr[rows[i]]
+        if near[i]:
+            m = _merged_row(indptr, indices, rows[i], extra[i], value_map, i if drop_self else -1, buffer)
         else:
-            m = _merged_row(indptr, indices, rows[i], extra[i], value_map, drop, buffer)
+            m = indptr[rows[i] + 1] - indptr[rows[i]]
         count[i + 1] = count[i] + m
     out = np.empty(count[n], np.int64)
     for i in range(n):
-        drop = i if drop_self else -1
-        if extra[i] < 0 and _mapped_row(indptr, indices, rows[i], value_map, drop, out, count[i]):
-            continue
-        m = _merged_row(indptr, indices, rows[i], extra[i], value_map, drop, buffer)
-        out[count[i]:count[i] + m] = buffer[:m]
+        if near[i]:
+            m = _merged_row(indptr, indices, rows[i], extra[i], value_map, i if drop_self else -1, buffer)
+            out[count[i]:count[i] + m] = buffer[:m]
+        else:
+            start = indptr[rows[i]]
+            for s in range(count[i + 1] - count[i]):
+                out[count[i] + s] = value_map[indices[start + s]]
     return count, out
 
 
@@ -533,6 +534,7 @@ class CollapseTopology:
         target[result.pairs[:, 1]] = result.pairs[:, 0]
         extra = np.full(len(kept), -1, np.int64)
         extra[new_index[result.pairs[:, 0]]] = result.pairs[:, 1]
-        ring = _merged_rows(*self.ring, kept, extra, new_index[target], True)
-        incidence = _merged_rows(*self.incidence, kept, extra, new_face, False)
+        near = _near_collapses(*self.ring, result.pairs, kept)
+        ring = _merged_rows(*self.ring, kept, extra, near, new_index[target], True)
+        incidence = _merged_rows(*self.incidence, kept, extra, near, new_face, False)
         return self._make(result.faces, ring, incidence, self.fixed[kept])
