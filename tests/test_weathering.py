@@ -310,3 +310,27 @@ def test_guard_query_after_a_collapse_holds_every_new_intersection():
     assert np.array_equal(intersecting_faces(solver.points, solver.faces, query=solver._moved_faces()), hits)
     assert not solver._accept()  # rolled back to the restart point
     assert len(solver.faces) == len(faces) and not solver._moved_faces().any()
+
+
+def test_guard_queries_and_kept_connectivity_match_whole_rebuilds_over_a_run(bunny):
+    """Over a run of the scan with edge collapses and rollbacks, every guard check of the queried faces finds
+    exactly what a check of the whole mesh finds, and the connectivity carried through the collapses equals
+    one rebuilt from the faces."""
+
+    class Checked(WeatheringSolver):
+        checks = 0
+
+        def _intersections(self, query=None):
+            hits = super()._intersections(query)
+            if query is not None:
+                assert np.array_equal(hits, intersecting_faces(self.points, self.faces))
+                self.checks += 1
+            rebuilt = CollapseTopology.build(self.faces, len(self.points))
+            for mine, theirs in zip((self._edges, self._usable, self._fixed, *self._ring),
+                                    (rebuilt.edges, rebuilt.usable, rebuilt.fixed, *rebuilt.ring)):
+                assert np.array_equal(mine, theirs)
+            return hits
+
+    solver = Checked(bunny.points, bunny.regular_faces, min_edge_ratio=0.25)
+    solver.run(60)
+    assert solver.collapses > 0 and solver.retries > 0 and solver.checks >= 6
