@@ -314,20 +314,6 @@ def _shared_vertices(faces, f, g):
     return n
 
 
-@njit(cache=True, error_model="numpy")
-def _pair_hits(points, faces, lo, hi, f, g):
-    """Test pair (f, g): boxes, adjacency, then the triangles."""
-    for d in range(3):
-        if lo[f, d] > hi[g, d] or lo[g, d] > hi[f, d]:
-            return False
-    if _share_vertex(faces, f, g):
-        return False
-    return tri_tri(
-        v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2]),
-        v3.row(points, faces[g, 0]), v3.row(points, faces[g, 1]), v3.row(points, faces[g, 2]),
-    )
-
-
 @njit(cache=True, error_model="numpy", nogil=True)
 def _hits_range(points, faces, lo, hi, query, low, start, entries, cells, hits, first, last):
     """Flag in ``hits`` the faces that meet a non-adjacent face, testing the pairs with a queried face in the
@@ -340,16 +326,27 @@ def _hits_range(points, faces, lo, hi, query, low, start, entries, cells, hits, 
             f = entries[i]
             key = cells[i]
             ix, iy, iz = key >> 42, (key >> 21) & mask, key & mask
+            f_low = (low[f, 0], low[f, 1], low[f, 2])
+            f_lo = (lo[f, 0], lo[f, 1], lo[f, 2])
+            f_hi = (hi[f, 0], hi[f, 1], hi[f, 2])
+            a, b_, c = faces[f, 0], faces[f, 1], faces[f, 2]
+            f_queried = query[f]
             for j in range(i + 1, start[b + 1]):
                 if cells[j] != key:
                     continue  # another cell hashed here
                 g = entries[j]
-                if not (query[f] or query[g]):
+                if not (f_queried or query[g]):
                     continue
-                if (max(low[f, 0], low[g, 0]) != ix or max(low[f, 1], low[g, 1]) != iy
-                        or max(low[f, 2], low[g, 2]) != iz):
+                if max(f_low[0], low[g, 0]) != ix or max(f_low[1], low[g, 1]) != iy or max(f_low[2], low[g, 2]) != iz:
                     continue  # the pair meets in an earlier cell
-                if _pair_hits(points, faces, lo, hi, f, g):
+                if (f_lo[0] > hi[g, 0] or lo[g, 0] > f_hi[0] or f_lo[1] > hi[g, 1] or lo[g, 1] > f_hi[1]
+                        or f_lo[2] > hi[g, 2] or lo[g, 2] > f_hi[2]):
+                    continue  # boxes apart
+                u, v, w = faces[g, 0], faces[g, 1], faces[g, 2]
+                if a == u or a == v or a == w or b_ == u or b_ == v or b_ == w or c == u or c == v or c == w:
+                    continue  # adjacent
+                if tri_tri(v3.row(points, a), v3.row(points, b_), v3.row(points, c),
+                           v3.row(points, u), v3.row(points, v), v3.row(points, w)):
                     hits[f] = True
                     hits[g] = True  # same value from any thread: a benign race
 
