@@ -35,9 +35,14 @@ Kernels keep about 200 bytes per vertex live (points, normals, frames and the
 scatter accumulators), so a span of 8192 vertices is about 1.6 MB, the order
 of a core's L2 cache."""
 
-MORTON_BITS = 5
-"""Bits per axis of the quantised positions whose Morton codes order the vertices (2^15 cells; the vertices
-of one cell keep their relative order, and a cell of a surface holds few enough of them to stay in cache)."""
+MORTON_BITS = 10
+"""Bits per axis of the quantised positions whose Morton codes order the vertices (2^30 cells; the vertices
+of one cell keep their relative order)."""
+
+_RADIX_BITS = 15
+"""Bits of the codes sorted per counting-sort pass (two passes of 2^15 buckets)."""
+
+_RADIX = 1 << _RADIX_BITS
 
 
 @njit(cache=True, error_model="numpy")
@@ -98,8 +103,8 @@ def _box_chunk(points, box, c):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _code_chunk(points, lo, scale, codes, counts, c):
-    """Morton codes of the quantised positions of the vertices of chunk ``c``, and their histogram ``counts[c]``."""
+def _code_chunk(points, lo, scale, codes, c):
+    """Morton codes of the quantised positions of the vertices of chunk ``c``."""
     cells = (1 << MORTON_BITS) - 1
     start, stop = chunk_range(points.shape[0], c)
     for v in range(start, stop):
@@ -108,12 +113,19 @@ def _code_chunk(points, lo, scale, codes, counts, c):
             q = int((points[v, d] - lo[d]) * scale[d])
             code |= _spread(min(max(q, 0), cells)) << d
         codes[v] = code
-        counts[c, code] += 1
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _count_chunk(codes, sequence, shift, counts, c):
+    """Histogram ``counts[c]`` of the radix digits at ``shift`` of the vertices at positions of chunk ``c``."""
+    start, stop = chunk_range(sequence.shape[0], c)
+    for i in range(start, stop):
+        counts[c, (codes[sequence[i]] >> shift) & (_RADIX - 1)] += 1
 
 
 @njit(cache=True, error_model="numpy")
 def _offsets(counts):
-    """First slot (CHUNKS, B) of every chunk's vertices of every code in the stable order by code."""
+    """First slot (CHUNKS, R) of every chunk's vertices of every digit in the stable order by digit."""
     slots = np.empty_like(counts)
     total = 0
     for b in range(counts.shape[1]):
@@ -124,14 +136,20 @@ def _offsets(counts):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _place_chunk(codes, slots, order, rank, c):
-    """Put the vertices of chunk ``c`` at their slots of the stable order by code."""
-    start, stop = chunk_range(codes.shape[0], c)
-    for v in range(start, stop):
-        key = codes[v]
-        order[slots[c, key]] = v
-        rank[v] = slots[c, key]
+def _place_chunk(codes, sequence, shift, slots, out, c):
+    """Put the vertices at positions of chunk ``c`` at their slots of the stable order by digit."""
+    start, stop = chunk_range(sequence.shape[0], c)
+    for i in range(start, stop):
+        v = sequence[i]
+        key = (codes[v] >> shift) & (_RADIX - 1)
+        out[slots[c, key]] = v
         slots[c, key] += 1
+
+
+@njit(cache=True, nogil=True)
+def _rank_range(order, rank, start, stop):
+    for i in range(start, stop):
+        rank[order[i]] = i
 
 
 @njit(cache=True, nogil=True)
@@ -246,11 +264,15 @@ def morton_renumbering(points: np.ndarray) -> Renumbering:
     extent = hi - lo
     scale = np.where(extent > 0.0, ((1 << MORTON_BITS) - 1) / np.where(extent > 0.0, extent, 1.0), 0.0)
     codes = np.empty(n, np.int64)
-    counts = np.zeros((CHUNKS, 1 << (3 * MORTON_BITS)), np.int64)
-    for_chunks(_code_chunk, n, pts, lo, scale, codes, counts)
-    slots = _offsets(counts)
-    order, rank = np.empty(n, np.int64), np.empty(n, np.int64)
-    for_chunks(_place_chunk, n, codes, slots, order, rank)
+    for_chunks(_code_chunk, n, pts, lo, scale, codes)
+    order, spare = np.arange(n), np.empty(n, np.int64)
+    for shift in range(0, 3 * MORTON_BITS, _RADIX_BITS):  # least significant digit first: stable
+        counts = np.zeros((CHUNKS, _RADIX), np.int64)
+        for_chunks(_count_chunk, n, codes, order, shift, counts)
+        for_chunks(_place_chunk, n, codes, order, shift, _offsets(counts), spare)
+        order, spare = spare, order
+    rank = np.empty(n, np.int64)
+    for_ranges(_rank_range, n, order, rank)
     return Renumbering(order, rank)
 
 
