@@ -228,17 +228,22 @@ def _grid_frame(lo, ok, side):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _key_range(lo, ok, origin, h, keys, start, stop):
-    """Morton keys of the lowest grid cells of the boxes of faces ``start`` to ``stop``."""
+def _key_range(lo, hi, ok, origin, h, inv_h, keys, cell, start, stop):
+    """Morton keys of the lowest grid cells of the boxes of faces ``start`` to ``stop``, and the ranges of grid
+    cells the boxes cover (lowest x, y, z, then highest)."""
     for f in range(start, stop):
         if ok[f]:
             keys[f] = _morton(
                 int((lo[f, 0] - origin[0]) / h), int((lo[f, 1] - origin[1]) / h), int((lo[f, 2] - origin[2]) / h)
             )
+            for d in range(3):
+                cell[f, d] = int((lo[f, d] - origin[d]) * inv_h)
+                cell[f, 3 + d] = int((hi[f, d] - origin[d]) * inv_h)
 
 
 def _face_boxes(points: np.ndarray, faces: np.ndarray) -> tuple:
-    """Boxes of the non-degenerate faces, the grid cell edge, origin and Morton keys."""
+    """Boxes of the faces (F, 3) twice, whether they are non-degenerate (F,), Morton keys (F,), the number of
+    non-degenerate faces and the range of grid cells every box covers (F, 6) (set for non-degenerate faces)."""
     n = faces.shape[0]
     lo = np.empty((n, 3))
     hi = np.empty((n, 3))
@@ -247,31 +252,21 @@ def _face_boxes(points: np.ndarray, faces: np.ndarray) -> tuple:
     for_ranges(_box_range, n, points, faces, lo, hi, ok, side)
     origin, h, n_ok = _grid_frame(lo, ok, side)
     keys = np.zeros(n, np.int64)
-    for_ranges(_key_range, n, lo, ok, origin, h, keys)
-    return lo, hi, ok, origin, 1.0 / h, keys, n_ok
+    cell = np.zeros((n, 6), np.int64)
+    for_ranges(_key_range, n, lo, hi, ok, origin, h, 1.0 / h, keys, cell)
+    return lo, hi, ok, keys, n_ok, cell
 
 
 @njit(cache=True, error_model="numpy")
-def _cell_range(lo, hi, f, origin, inv_h):
-    return (
-        int((lo[f, 0] - origin[0]) * inv_h),
-        int((lo[f, 1] - origin[1]) * inv_h),
-        int((lo[f, 2] - origin[2]) * inv_h),
-        int((hi[f, 0] - origin[0]) * inv_h),
-        int((hi[f, 1] - origin[1]) * inv_h),
-        int((hi[f, 2] - origin[2]) * inv_h),
-    )
-
-
-@njit(cache=True, error_model="numpy")
-def _build_grid(lo, hi, ok, origin, inv_h, size):
-    """Spatial hash: the faces covering each bucket's cells, with each entry's packed cell key."""
-    n = lo.shape[0]
+def _build_grid(cell, ok, size):
+    """Spatial hash: the faces covering each bucket's cells (ranges ``cell`` (F, 6)), with each entry's packed cell
+    key."""
+    n = cell.shape[0]
     start = np.zeros(size + 1, np.int64)
     for f in range(n):
         if not ok[f]:
             continue
-        x0, y0, z0, x1, y1, z1 = _cell_range(lo, hi, f, origin, inv_h)
+        x0, y0, z0, x1, y1, z1 = cell[f, 0], cell[f, 1], cell[f, 2], cell[f, 3], cell[f, 4], cell[f, 5]
         for ix in range(x0, x1 + 1):
             for iy in range(y0, y1 + 1):
                 for iz in range(z0, z1 + 1):
@@ -284,7 +279,7 @@ def _build_grid(lo, hi, ok, origin, inv_h, size):
     for f in range(n):
         if not ok[f]:
             continue
-        x0, y0, z0, x1, y1, z1 = _cell_range(lo, hi, f, origin, inv_h)
+        x0, y0, z0, x1, y1, z1 = cell[f, 0], cell[f, 1], cell[f, 2], cell[f, 3], cell[f, 4], cell[f, 5]
         for ix in range(x0, x1 + 1):
             for iy in range(y0, y1 + 1):
                 for iz in range(z0, z1 + 1):
@@ -329,13 +324,13 @@ def _pair_hits(points, faces, lo, hi, f, g):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _hits_range(points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells, size, hits, first, last):
+def _hits_range(points, faces, lo, hi, ok, query, cell, start, entries, cells, size, hits, first, last):
     """Flag in ``hits`` the faces that meet a non-adjacent face, testing the pairs of queried faces ``first`` to
     ``last`` once (both faces of a hit are flagged; another range may flag the same face, with the same value)."""
     for f in range(first, last):
         if not (ok[f] and query[f]):
             continue
-        fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
+        fx0, fy0, fz0, fx1, fy1, fz1 = cell[f, 0], cell[f, 1], cell[f, 2], cell[f, 3], cell[f, 4], cell[f, 5]
         for ix in range(fx0, fx1 + 1):
             for iy in range(fy0, fy1 + 1):
                 for iz in range(fz0, fz1 + 1):
@@ -346,31 +341,19 @@ def _hits_range(points, faces, lo, hi, ok, query, origin, inv_h, start, entries,
                         if cells[e] != key or g == f or (g < f and query[g]):
                             continue  # another cell hashed here, f itself, or a pair seen from g
                         # visit the pair only in the first cell both boxes cover
-                        if (
-                            max(fx0, int((lo[g, 0] - origin[0]) * inv_h)) != ix
-                            or max(fy0, int((lo[g, 1] - origin[1]) * inv_h)) != iy
-                            or max(fz0, int((lo[g, 2] - origin[2]) * inv_h)) != iz
-                        ):
+                        if max(fx0, cell[g, 0]) != ix or max(fy0, cell[g, 1]) != iy or max(fz0, cell[g, 2]) != iz:
                             continue
                         if _pair_hits(points, faces, lo, hi, f, g):
                             hits[f] = True
                             hits[g] = True  # same value from any thread: a benign race
 
 
-def _count_hits(points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells, size) -> np.ndarray:
+def _count_hits(points, faces, lo, hi, ok, query, cell, start, entries, cells, size) -> np.ndarray:
     """Flag the faces that meet a non-adjacent face, testing the pairs with a queried face once."""
     hits = np.zeros(faces.shape[0], np.bool_)
-    for_ranges(_hits_range, faces.shape[0], points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells,
-               size, hits, min_items=HEAVY_ITEMS_PER_RANGE)
+    for_ranges(_hits_range, faces.shape[0], points, faces, lo, hi, ok, query, cell, start, entries, cells, size,
+               hits, min_items=HEAVY_ITEMS_PER_RANGE)
     return hits
-
-
-@njit(cache=True, error_model="numpy")
-def _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
-    """Whether cell (ix, iy, iz) is the lowest cell that the boxes of f and g both cover."""
-    fx0, fy0, fz0, _, _, _ = _cell_range(lo, hi, f, origin, inv_h)
-    gx0, gy0, gz0, _, _, _ = _cell_range(lo, hi, g, origin, inv_h)
-    return max(fx0, gx0) == ix and max(fy0, gy0) == iy and max(fz0, gz0) == iz
 
 
 @njit(cache=True, error_model="numpy")
@@ -444,7 +427,7 @@ def _apart_by_a_plane(points, faces, f, g, shared):
 
 
 @njit(cache=True, error_model="numpy")
-def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size, f,
+def _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, f,
                     out, n_out):
     """Faces g whose boxes meet f's box, that share no edge with f, (with groups) are in another group, and
     that neither lies strictly on one side of the other's plane nor of a plane of :func:`_apart_by_a_plane`
@@ -452,7 +435,7 @@ def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, 
     query any g not queried before f. Written to ``out`` as (min, max) from ``n_out`` on when it is large
     enough. Returns the count."""
     grouped = group.shape[0] > 0
-    fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
+    fx0, fy0, fz0, fx1, fy1, fz1 = cell[f, 0], cell[f, 1], cell[f, 2], cell[f, 3], cell[f, 4], cell[f, 5]
     for ix in range(fx0, fx1 + 1):
         for iy in range(fy0, fy1 + 1):
             for iz in range(fz0, fz1 + 1):
@@ -465,14 +448,14 @@ def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, 
                         continue
                     if cells[e] != key or (grouped and group[f] == group[g]):
                         continue
-                    if not _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
+                    # visit the pair only in the first cell both boxes cover
+                    if max(fx0, cell[g, 0]) != ix or max(fy0, cell[g, 1]) != iy or max(fz0, cell[g, 2]) != iz:
                         continue
-                    overlap = True
-                    for d in range(3):
-                        if lo[f, d] > hi[g, d] or lo[g, d] > hi[f, d]:
-                            overlap = False
+                    if (lo[f, 0] > hi[g, 0] or lo[g, 0] > hi[f, 0] or lo[f, 1] > hi[g, 1] or lo[g, 1] > hi[f, 1]
+                            or lo[f, 2] > hi[g, 2] or lo[g, 2] > hi[f, 2]):
+                        continue
                     shared = _shared_vertices(faces, f, g)
-                    if not overlap or shared > 1:
+                    if shared > 1:
                         continue
                     # faces that share a vertex meet beyond it only when neither has its other two vertices on
                     # one side of the other's plane
@@ -542,38 +525,38 @@ def _nearly_one_plane(planes, f, g):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _pair_count_range(points, faces, planes, lo, hi, ok, group, query, origin, inv_h, start, entries, cells, size,
+def _pair_count_range(points, faces, planes, lo, hi, ok, group, query, cell, start, entries, cells, size,
                       count, first, last):
     """``count[f + 1]``: the number of pairs of face f, for faces ``first`` to ``last``."""
     none = np.empty((0, 2), np.int64)
     for f in range(first, last):
         if ok[f] and (query.shape[0] == 0 or query[f]):
-            count[f + 1] = _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start,
+            count[f + 1] = _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start,
                                            entries, cells, size, f, none, np.int64(0))
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _pair_fill_range(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size, count,
+def _pair_fill_range(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, count,
                      out, first, last):
     """The pairs of faces ``first`` to ``last``, at rows ``count[f]`` to ``count[f + 1]`` of ``out``."""
     for f in range(first, last):
         if count[f + 1] > count[f]:
             rows = out[count[f]:count[f + 1]]
-            _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size,
+            _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size,
                             f, rows, np.int64(0))
 
 
-def _box_pairs(points, faces, planes, lo, hi, ok, group, query, origin, inv_h, start, entries, cells,
+def _box_pairs(points, faces, planes, lo, hi, ok, group, query, cell, start, entries, cells,
                size) -> np.ndarray:
     """All face pairs (f < g) of :func:`candidate_pairs`, grouped by the queried face (by f without a query):
     (K, 2)."""
     n = faces.shape[0]
     count = np.zeros(n + 1, np.int64)
-    for_ranges(_pair_count_range, n, points, faces, planes, lo, hi, ok, group, query, origin, inv_h, start, entries,
+    for_ranges(_pair_count_range, n, points, faces, planes, lo, hi, ok, group, query, cell, start, entries,
                cells, size, count, min_items=HEAVY_ITEMS_PER_RANGE)
     np.cumsum(count, out=count)
     out = np.empty((count[n], 2), np.int64)
-    for_ranges(_pair_fill_range, n, points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells,
+    for_ranges(_pair_fill_range, n, points, faces, planes, lo, hi, group, query, cell, start, entries, cells,
                size, count, out, min_items=HEAVY_ITEMS_PER_RANGE)
     return out
 
@@ -626,14 +609,14 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     wanted = np.zeros(0, bool) if query is None else np.asarray(query, dtype=bool)
     if query is not None and wanted.shape != (len(fcs),):
         raise ValueError(f"query must have shape ({len(fcs)},); got {wanted.shape}")
-    lo, hi, ok, origin, inv_h, _, n_ok = _face_boxes(pts, fcs)
+    lo, hi, ok, _, n_ok, cell = _face_boxes(pts, fcs)
     if query is not None and n_ok:
         ok, n_ok = _near_query(lo, hi, ok, wanted)
     if n_ok == 0:
         return np.zeros((0, 2), np.int64)
     size = 4 * n_ok + 1
-    start, entries, cells = _build_grid(lo, hi, ok, origin, inv_h, size)
-    return _box_pairs(pts, fcs, _face_planes(pts, fcs), lo, hi, ok, grp, wanted, origin, inv_h, start, entries,
+    start, entries, cells = _build_grid(cell, ok, size)
+    return _box_pairs(pts, fcs, _face_planes(pts, fcs), lo, hi, ok, grp, wanted, cell, start, entries,
                       cells, size)
 
 
@@ -654,7 +637,7 @@ def spatial_order(points, faces) -> np.ndarray:
     numpy.ndarray, shape (F,), int64
     """
     pts, fcs = as_triangle_mesh(points, faces)
-    return np.argsort(_face_boxes(pts, fcs)[5], kind="stable")
+    return np.argsort(_face_boxes(pts, fcs)[3], kind="stable")
 
 
 def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
@@ -688,7 +671,7 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
         raise ValueError(f"order must have shape ({len(fcs)},); got {order.shape}")
     # visit the faces in Morton order, so neighbours in space are near in memory
     local = fcs[order]
-    lo, hi, ok, origin, inv_h, _, n_ok = _face_boxes(pts, local)
+    lo, hi, ok, _, n_ok, cell = _face_boxes(pts, local)
     hits = np.zeros(len(fcs), bool)
     local_query = q[order]
     if query is not None and n_ok:  # the grid holds few faces when the query is local (vertices moved in one place)
@@ -696,8 +679,8 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
     if n_ok == 0:
         return hits
     size = 4 * n_ok + 1
-    grid = _build_grid(lo, hi, ok, origin, inv_h, size)
-    hits[order] = _count_hits(pts, local, lo, hi, ok, local_query, origin, inv_h, *grid, size)
+    grid = _build_grid(cell, ok, size)
+    hits[order] = _count_hits(pts, local, lo, hi, ok, local_query, cell, *grid, size)
     return hits
 
 

@@ -90,6 +90,9 @@ IMPROVE_EDGE_RATIO = 0.25
 IMPROVE_MAX_ANGLE = 150.0
 """Mesh improvement after a repair: faces with a larger angle (degrees) are caps, flipped or split."""
 
+FEW_RAYS = 16
+"""Winding numbers by at most this many rays test every face instead of building a grid of columns first."""
+
 # the region of every operation, from whether a point is inside A and inside B (each: its winding number >= 1)
 _REGION = {
     None: lambda a: a,
@@ -364,6 +367,16 @@ def _columns(points, faces):
     return lo, size, dims, start, items
 
 
+def _ray_columns(points, faces, n_rays):
+    """:func:`_columns`, or for at most :data:`FEW_RAYS` rays a single column holding every face (building the grid
+    costs more than crossing-testing every face; the winding numbers are the same)."""
+    if n_rays > FEW_RAYS:
+        return _columns(points, faces)
+    lo = points.min(axis=0) if len(points) else np.zeros(3)
+    return (lo, np.inf, np.ones(3, np.int64), np.array([0, len(faces)], np.int64),
+            np.arange(len(faces), dtype=np.int64))
+
+
 def _patch_windings(points, faces, face_group, reps, groups) -> tuple[np.ndarray, np.ndarray]:
     """Winding numbers of the faces of ``groups`` (< 0: all) at the centroids of the faces ``reps``, leaving
     those faces out, by rays along the axis their normals point most along (z where they are not vertical),
@@ -376,8 +389,8 @@ def _patch_windings(points, faces, face_group, reps, groups) -> tuple[np.ndarray
     for a in np.unique(axis):
         perm = [(a + 1) % 3, (a + 2) % 3, a]  # cyclic: the faces keep their orientation
         turned = np.ascontiguousarray(points[:, perm])
-        lo, size, dims, start, items = _columns(turned, faces)
         rows = np.flatnonzero(axis == a)
+        lo, size, dims, start, items = _ray_columns(turned, faces, len(rows))
         out[rows] = _ray_windings(np.ascontiguousarray(centre[rows][:, perm]), reps[rows], groups[rows], turned,
                                   faces, lo, size, dims, start, items, face_group)
     return out, normal[np.arange(len(reps)), axis] < 0.0
@@ -475,8 +488,8 @@ def _coincident_windings(pts, fcs, input_group, overlaps, points, faces, source,
     for a in np.unique(axis):
         perm = [(a + 1) % 3, (a + 2) % 3, a]  # cyclic: the faces keep their orientation
         turned = np.ascontiguousarray(points[:, perm])
-        lo, size, dims, col_start, items = _columns(turned, faces)
         rows = np.flatnonzero(axis == a)
+        lo, size, dims, col_start, items = _ray_columns(turned, faces, n_groups * len(rows))
         queries = np.ascontiguousarray(centre[rows][:, perm])
         in_rows = np.isin(owner, rows)
         sub_start = np.r_[0, np.cumsum(count[rows])]
@@ -609,12 +622,29 @@ def _split_touching(points, faces, twins):
 def _shells(points, faces):
     """Shell (edge-connected part) of every face (F,), and the signed volume and area of every shell."""
     shell = _patches(faces, len(points), np.zeros(0, np.int64), False)
-    tri = points[faces]
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    n = shell.max() + 1 if len(shell) else 0
-    volume = np.bincount(shell, np.einsum("ij,ij->i", tri[:, 0] - points.min(axis=0), cross) / 6.0, minlength=n)
-    area = np.bincount(shell, 0.5 * np.linalg.norm(cross, axis=1), minlength=n)
+    volume, area = _shell_sizes(points, faces, shell)
     return shell, volume, area
+
+
+@njit(cache=True)
+def _shell_sizes(points, faces, shell):
+    """Signed volume and area of every shell (labels ``shell`` (F,), 0..S-1): sums over the faces in order of the
+    volumes of the tetrahedra from the points' lowest corner and of the faces' areas."""
+    n = shell.max() + 1 if shell.shape[0] else 0
+    origin = np.full(3, np.inf)
+    for v in range(points.shape[0]):
+        for a in range(3):
+            origin[a] = min(origin[a], points[v, a])
+    volume = np.zeros(n)
+    area = np.zeros(n)
+    for f in range(faces.shape[0]):
+        p0, p1, p2 = points[faces[f, 0]], points[faces[f, 1]], points[faces[f, 2]]
+        ux, uy, uz = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
+        wx, wy, wz = p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]
+        cx, cy, cz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+        volume[shell[f]] += ((p0[0] - origin[0]) * cx + (p0[1] - origin[1]) * cy + (p0[2] - origin[2]) * cz) / 6.0
+        area[shell[f]] += 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
+    return volume, area
 
 
 def mesh_problems(points, faces, *, query=None) -> list[str]:
