@@ -218,57 +218,106 @@ def _cut_faces(pts, fcs, canon, curves):
     kept = np.flatnonzero(whole)
     if len(cut) == 0:
         return canon[fcs[kept]], kept, point_id
-    # local points of every cut face: its 3 corners, then its curve points that are not corners
-    row_face = np.searchsorted(cut, table[:, 0])  # index of each row's face in ``cut``
-    other = table[:, 2] >= 3
-    n_other = np.bincount(row_face[other], minlength=len(cut))
-    point_start = np.zeros(len(cut) + 1, np.int64)
-    np.cumsum(3 + n_other, out=point_start[1:])
-    before = np.cumsum(other) - other  # other rows before each row
-    local = np.where(other, 3 + before - before[first_row][row_face], table[:, 2])  # each row's point on its face
-    tri = pts[fcs[cut]]  # (C, 3, 3)
-    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    axis = np.argmax(np.abs(normal), axis=1)
-    flip = normal[np.arange(len(cut)), axis] < 0.0
-    cols = np.stack([(axis + 1) % 3, (axis + 2) % 3], axis=1)
-    cols[flip] = cols[flip][:, ::-1]
-    xyz = np.empty((point_start[-1], 3))
-    corner_rows = (point_start[:-1, None] + np.arange(3)).ravel()
-    xyz[corner_rows] = tri.reshape(-1, 3)
-    other_rows = point_start[row_face[other]] + local[other]
-    xyz[other_rows] = curves.points[table[other, 1]]
-    row_owner = np.repeat(np.arange(len(cut)), 3 + n_other)
-    xy = np.take_along_axis(xyz, cols[row_owner], axis=1)
-    location = np.empty(point_start[-1], np.int64)
-    location[corner_rows] = np.tile([0, 1, 2], len(cut))
-    location[other_rows] = table[other, 2]
-    param = np.zeros(point_start[-1])
-    edge = other & (table[:, 2] < 6)
-    k = table[edge, 2] - 3
-    owner = row_face[edge]
-    a, b = tri[owner, k], tri[owner, (k + 1) % 3]
-    param[point_start[owner] + local[edge]] = (np.einsum("ij,ij->i", curves.points[table[edge, 1]] - a, b - a)
-                                               / np.einsum("ij,ij->i", b - a, b - a))
-    # segments in local indices: look every end up as (face, point) in the table
-    seg_face = np.concatenate([curves.pairs[:, 0], curves.pairs[:, 1]])
-    seg_points = np.concatenate([curves.segments, curves.segments])
-    order = np.argsort(seg_face, kind="stable")
-    seg_face, seg_points = seg_face[order], seg_points[order]
-    n_points = len(curves.points)
-    row_key = table[:, 0] * n_points + table[:, 1]  # sorted: the table is sorted by face, then point
-    ends = np.searchsorted(row_key, seg_face[:, None] * n_points + seg_points)
-    segments = local[ends]
-    seg_start = np.searchsorted(seg_face, np.r_[cut, np.iinfo(np.int64).max])
+    xy, location, param, point_start, ids, segments, seg_start = _cut_input(
+        pts, fcs, canon, table, cut, np.r_[first_row, len(table)], curves.points, point_id, curves.pairs,
+        curves.segments)
     triangles, _, tri_start = cut_triangles(xy, location, param, point_start, segments, seg_start)
     counts = np.diff(tri_start)
     if np.any(counts == 0):
         raise RepairError(f"face {cut[np.argmax(counts == 0)]} could not be cut along its intersection segments")
-    ids = np.empty(point_start[-1], np.int64)
-    ids[corner_rows] = canon[fcs[cut]].ravel()
-    ids[other_rows] = point_id[table[other, 1]]
     tri_owner = np.repeat(np.arange(len(cut)), counts)
     pieces = ids[point_start[tri_owner][:, None] + triangles]
     return (np.concatenate([canon[fcs[kept]], pieces]), np.concatenate([kept, cut[tri_owner]]), point_id)
+
+
+@njit(cache=True)
+def _cut_input(pts, fcs, canon, table, cut, row_start, curve_points, point_id, pairs, segments):
+    """The input of :func:`cut_triangles` for the faces ``cut`` (C,) from the rows (face, curve point, location)
+    of :func:`_face_points` (``table`` (R, 3), the rows of ``cut[c]`` from ``row_start[c]`` on): every face's
+    local points (its 3 corners, then its curve points that are not corners, in table order) projected along the
+    axis its normal points most along (turned so that the face runs counterclockwise), their locations, their
+    parameters along their edges, the CSR offsets (C + 1,), the output vertex id of every local point, and the
+    faces' segments in local points with their CSR offsets (C + 1,) (a segment once for each of its two faces, in
+    the order of ``pairs``' first column, then its second)."""
+    n_cut = cut.shape[0]
+    point_start = np.zeros(n_cut + 1, np.int64)
+    for c in range(n_cut):
+        n_other = 0
+        for r in range(row_start[c], row_start[c + 1]):
+            if table[r, 2] >= 3:
+                n_other += 1
+        point_start[c + 1] = point_start[c] + 3 + n_other
+    n = point_start[n_cut]
+    xy = np.empty((n, 2))
+    location = np.empty(n, np.int64)
+    param = np.zeros(n)
+    ids = np.empty(n, np.int64)
+    local = np.empty(table.shape[0], np.int64)  # every row's point on its face
+    for c in range(n_cut):
+        f, at = cut[c], point_start[c]
+        p0, p1, p2 = pts[fcs[f, 0]], pts[fcs[f, 1]], pts[fcs[f, 2]]
+        ux, uy, uz = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
+        wx, wy, wz = p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]
+        normal = (uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx)
+        axis = 0 if abs(normal[0]) >= abs(normal[1]) and abs(normal[0]) >= abs(normal[2]) else (
+            1 if abs(normal[1]) >= abs(normal[2]) else 2)
+        i, j = (axis + 1) % 3, (axis + 2) % 3
+        if normal[axis] < 0.0:
+            i, j = j, i
+        for k in range(3):
+            corner = pts[fcs[f, k]]
+            xy[at + k, 0], xy[at + k, 1] = corner[i], corner[j]
+            location[at + k] = k
+            ids[at + k] = canon[fcs[f, k]]
+        m = at + 3
+        for r in range(row_start[c], row_start[c + 1]):
+            loc = table[r, 2]
+            if loc < 3:
+                local[r] = loc
+                continue
+            local[r] = m - at
+            q = curve_points[table[r, 1]]
+            xy[m, 0], xy[m, 1] = q[i], q[j]
+            location[m] = loc
+            ids[m] = point_id[table[r, 1]]
+            if loc < 6:
+                a, b = pts[fcs[f, loc - 3]], pts[fcs[f, (loc - 2) % 3]]
+                ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+                param[m] = ((q[0] - a[0]) * ex + (q[1] - a[1]) * ey + (q[2] - a[2]) * ez) / (ex * ex + ey * ey
+                                                                                            + ez * ez)
+            m += 1
+    local_segments, seg_start = _local_segments(fcs.shape[0], table, cut, row_start, local, pairs, segments)
+    return xy, location, param, point_start, ids, local_segments, seg_start
+
+
+@njit(cache=True)
+def _local_segments(n_faces, table, cut, row_start, local, pairs, segments):
+    """The segments of every cut face in its local points, and their CSR offsets (see :func:`_cut_input`)."""
+    slot = np.full(n_faces, -1, np.int64)
+    for c in range(cut.shape[0]):
+        slot[cut[c]] = c
+    seg_start = np.zeros(cut.shape[0] + 1, np.int64)
+    for side in range(2):
+        for s in range(pairs.shape[0]):
+            seg_start[slot[pairs[s, side]] + 1] += 1
+    for c in range(cut.shape[0]):
+        seg_start[c + 1] += seg_start[c]
+    fill = seg_start[:-1].copy()
+    out = np.empty((2 * pairs.shape[0], 2), np.int64)
+    for side in range(2):
+        for s in range(pairs.shape[0]):
+            c = slot[pairs[s, side]]
+            for e in range(2):  # the row of (face, point): rows of a face are sorted by point
+                lo, hi = row_start[c], row_start[c + 1]
+                while lo < hi:
+                    mid = (lo + hi) // 2
+                    if table[mid, 1] < segments[s, e]:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                out[fill[c], e] = local[lo]
+            fill[c] += 1
+    return out, seg_start
 
 
 # --- patches and their winding numbers ---------------------------------------------------------------------------
