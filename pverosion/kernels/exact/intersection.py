@@ -525,40 +525,36 @@ def _nearly_one_plane(planes, f, g):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _pair_count_range(points, faces, planes, lo, hi, ok, group, query, cell, start, entries, cells, size,
-                      count, first, last):
-    """``count[f + 1]``: the number of pairs of face f, for faces ``first`` to ``last``."""
-    none = np.empty((0, 2), np.int64)
+def _pair_range(points, faces, planes, lo, hi, ok, group, query, cell, start, entries, cells, size, first, last):
+    """The pairs of faces ``first`` to ``last`` (K, 2), face by face, in one pass: a face whose pairs overflow the
+    buffer is searched again after the buffer has grown."""
+    out = np.empty((max(16, (last - first) // 4), 2), np.int64)
+    n = np.int64(0)
     for f in range(first, last):
-        if ok[f] and (query.shape[0] == 0 or query[f]):
-            count[f + 1] = _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start,
-                                           entries, cells, size, f, none, np.int64(0))
+        if not (ok[f] and (query.shape[0] == 0 or query[f])):
+            continue
+        m = _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, f, out, n)
+        if m > out.shape[0]:
+            grown = np.empty((max(2 * out.shape[0], m), 2), np.int64)
+            grown[:n] = out[:n]
+            out = grown
+            m = _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, f,
+                                out, n)
+        n = m
+    return out[:n]
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
-def _pair_fill_range(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, count,
-                     out, first, last):
-    """The pairs of faces ``first`` to ``last``, at rows ``count[f]`` to ``count[f + 1]`` of ``out``."""
-    for f in range(first, last):
-        if count[f + 1] > count[f]:
-            rows = out[count[f]:count[f + 1]]
-            _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size,
-                            f, rows, np.int64(0))
-
-
-def _box_pairs(points, faces, planes, lo, hi, ok, group, query, cell, start, entries, cells,
-               size) -> np.ndarray:
+def _box_pairs(points, faces, planes, lo, hi, ok, group, query, cell, start, entries, cells, size) -> np.ndarray:
     """All face pairs (f < g) of :func:`candidate_pairs`, grouped by the queried face (by f without a query):
     (K, 2)."""
-    n = faces.shape[0]
-    count = np.zeros(n + 1, np.int64)
-    for_ranges(_pair_count_range, n, points, faces, planes, lo, hi, ok, group, query, cell, start, entries,
-               cells, size, count, min_items=HEAVY_ITEMS_PER_RANGE)
-    np.cumsum(count, out=count)
-    out = np.empty((count[n], 2), np.int64)
-    for_ranges(_pair_fill_range, n, points, faces, planes, lo, hi, group, query, cell, start, entries, cells,
-               size, count, out, min_items=HEAVY_ITEMS_PER_RANGE)
-    return out
+    parts = {}
+
+    def part(*args):
+        parts[args[-2]] = _pair_range(*args)
+
+    for_ranges(part, faces.shape[0], points, faces, planes, lo, hi, ok, group, query, cell, start, entries, cells,
+               size, min_items=HEAVY_ITEMS_PER_RANGE)
+    return parts[0] if len(parts) == 1 else np.concatenate([parts[first] for first in sorted(parts)])
 
 
 def _near_query(lo: np.ndarray, hi: np.ndarray, ok: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, int]:
