@@ -141,7 +141,7 @@ class RepairResult:
 def _edge_keys(canon: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Key a * V + b (a < b, canonical vertices) of every face edge k (from corner k to k + 1): (F, 3)."""
     a = canon[faces]
-    b = np.roll(a, -1, axis=1)
+    b = a[:, [1, 2, 0]]
     n = len(canon)
     return np.minimum(a, b) * n + np.maximum(a, b)
 
@@ -212,7 +212,9 @@ def _cut_faces(pts, fcs, canon, curves):
     keys = curves.point_keys
     point_id = np.where(keys[:, 0] == VERTEX, keys[:, 1], n_vertices + np.arange(len(keys)))
     table = _face_points(fcs, canon, curves)
-    cut, first_row = np.unique(table[:, 0], return_index=True)
+    # the table is sorted by face: the first row of every face is where the face changes
+    first_row = np.flatnonzero(np.r_[True, table[1:, 0] != table[:-1, 0]]) if len(table) else np.zeros(0, np.int64)
+    cut = table[first_row, 0]
     whole = np.ones(len(fcs), bool)
     whole[cut] = False
     kept = np.flatnonzero(whole)
@@ -421,7 +423,7 @@ def _ray_columns(points, faces, n_rays):
     costs more than crossing-testing every face; the winding numbers are the same)."""
     if n_rays > FEW_RAYS:
         return _columns(points, faces)
-    lo = points.min(axis=0) if len(points) else np.zeros(3)
+    lo = _box(points)[0] if len(points) else np.zeros(3)
     return (lo, np.inf, np.ones(3, np.int64), np.array([0, len(faces)], np.int64),
             np.arange(len(faces), dtype=np.int64))
 
@@ -431,7 +433,7 @@ def _patch_windings(points, faces, face_group, reps, groups) -> tuple[np.ndarray
     those faces out, by rays along the axis their normals point most along (z where they are not vertical),
     and whether each rep faces down that axis."""
     tri = points[faces[reps]]
-    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normal = _cross_rows(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     axis = np.where(normal[:, 2] != 0.0, 2, np.argmax(np.abs(normal), axis=1))
     centre = tri.mean(axis=1)
     out = np.zeros(len(reps), np.int64)
@@ -773,8 +775,40 @@ def _problems(pts, fcs, query, shells, twins=None) -> list[str]:
     return problems
 
 
+def _any_corner(flags: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Faces (F, 3) with a flagged vertex (``flags`` (V,) bool): (F,) bool."""
+    corner = flags[faces]
+    return corner[:, 0] | corner[:, 1] | corner[:, 2]
+
+
 def _diagonal(points: np.ndarray) -> float:
-    return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0))) if len(points) else 0.0
+    if len(points) == 0:
+        return 0.0
+    lo, hi = _box(points)
+    return float(np.linalg.norm(hi - lo))
+
+
+@njit(cache=True)
+def _box(points):
+    """Lowest and highest corner (3,) of the bounding box of ``points`` (V, 3), V > 0 (one pass; numpy's reduction
+    along the first axis of an (V, 3) array is slower)."""
+    lo = points[0].copy()
+    hi = points[0].copy()
+    for v in range(1, points.shape[0]):
+        for a in range(3):
+            lo[a] = min(lo[a], points[v, a])
+            hi[a] = max(hi[a], points[v, a])
+    return lo, hi
+
+
+def _cross_rows(u: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Cross products of the rows of u and w (N, 3), as :func:`numpy.cross` computes them (without its axis
+    handling, which costs more than the products on a few rows)."""
+    out = np.empty(u.shape)
+    out[:, 0] = u[:, 1] * w[:, 2] - u[:, 2] * w[:, 1]
+    out[:, 1] = u[:, 2] * w[:, 0] - u[:, 0] * w[:, 2]
+    out[:, 2] = u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]
+    return out
 
 
 def _finalized(result: RepairResult) -> RepairResult:
@@ -817,7 +851,7 @@ def _finalized(result: RepairResult) -> RepairResult:
             changed = changed[used]
     problems = []
     if len(result.faces):  # empty: nothing left, which is a valid result
-        problems = _problems(result.points, result.faces, changed[result.faces].any(axis=1), shells, twins)
+        problems = _problems(result.points, result.faces, _any_corner(changed, result.faces), shells, twins)
     if problems:
         raise RepairError("the result would not be a closed, oriented 2-manifold without self-intersections: "
                           + "; ".join(problems))
@@ -935,7 +969,7 @@ def _used_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
 def _tolerance(points: np.ndarray, tolerance: float) -> float:
     if not (np.isfinite(tolerance) and tolerance >= 0.0):
         raise ValueError(f"tolerance must be a finite number >= 0; got {tolerance!r}")
-    return float(tolerance) * float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    return float(tolerance) * _diagonal(points)
 
 
 def _without_degenerate(pts, fcs, tol):
