@@ -432,6 +432,8 @@ def _patch_windings(points, faces, face_group, reps, groups) -> tuple[np.ndarray
     """Winding numbers of the faces of ``groups`` (< 0: all) at the centroids of the faces ``reps``, leaving
     those faces out, by rays along the axis their normals point most along (z where they are not vertical),
     and whether each rep faces down that axis."""
+    if len(reps) <= FEW_RAYS:
+        return _few_windings(points, faces, face_group, reps, groups)
     tri = points[faces[reps]]
     normal = _cross_rows(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     axis = np.where(normal[:, 2] != 0.0, 2, np.argmax(np.abs(normal), axis=1))
@@ -445,6 +447,45 @@ def _patch_windings(points, faces, face_group, reps, groups) -> tuple[np.ndarray
         out[rows] = _ray_windings(np.ascontiguousarray(centre[rows][:, perm]), reps[rows], groups[rows], turned,
                                   faces, lo, size, dims, start, items, face_group)
     return out, normal[np.arange(len(reps)), axis] < 0.0
+
+
+@njit(cache=True)
+def _few_windings(points, faces, face_group, reps, groups):
+    """:func:`_patch_windings` by testing every face (for a few rays): the same normals, centroids and rays."""
+    n_reps = reps.shape[0]
+    out = np.zeros(n_reps, np.int64)
+    down = np.zeros(n_reps, np.bool_)
+    axis = np.empty(n_reps, np.int64)
+    centre = np.empty((n_reps, 3))
+    for r in range(n_reps):
+        p0, p1, p2 = points[faces[reps[r], 0]], points[faces[reps[r], 1]], points[faces[reps[r], 2]]
+        ux, uy, uz = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
+        wx, wy, wz = p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]
+        normal = (uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx)
+        a = 2
+        if normal[2] == 0.0:  # the first largest, as numpy's argmax
+            a = 1 if abs(normal[1]) > abs(normal[0]) else 0
+        axis[r] = a
+        down[r] = normal[a] < 0.0
+        for k in range(3):
+            centre[r, k] = (p0[k] + p1[k] + p2[k]) / 3.0
+    dims = np.ones(3, np.int64)
+    column = np.array([0, faces.shape[0]], np.int64)
+    every = np.arange(faces.shape[0])
+    turned = np.empty_like(points)
+    query = np.empty(3)
+    for a in range(3):
+        if not np.any(axis == a):
+            continue
+        for v in range(points.shape[0]):  # cyclic: the faces keep their orientation
+            turned[v, 0], turned[v, 1], turned[v, 2] = points[v, (a + 1) % 3], points[v, (a + 2) % 3], points[v, a]
+        lo, _ = _box(turned)
+        for r in range(n_reps):
+            if axis[r] == a:
+                query[0], query[1], query[2] = centre[r, (a + 1) % 3], centre[r, (a + 2) % 3], centre[r, a]
+                out[r] = ray_winding(query, turned, faces, lo, np.inf, dims, column, every, reps[r], face_group,
+                                     groups[r])
+    return out, down
 
 
 @njit(cache=True, nogil=True)
