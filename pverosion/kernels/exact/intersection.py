@@ -525,14 +525,13 @@ def _nearly_one_plane(planes, f, g):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _pair_range(points, faces, planes, lo, hi, ok, group, query, cell, start, entries, cells, size, first, last):
-    """The pairs of faces ``first`` to ``last`` (K, 2), face by face, in one pass: a face whose pairs overflow the
+def _pair_range(points, faces, planes, lo, hi, todo, group, query, cell, start, entries, cells, size, first, last):
+    """The pairs of faces ``todo[first:last]`` (K, 2), face by face, in one pass: a face whose pairs overflow the
     buffer is searched again after the buffer has grown."""
     out = np.empty((max(16, (last - first) // 4), 2), np.int64)
     n = np.int64(0)
-    for f in range(first, last):
-        if not (ok[f] and (query.shape[0] == 0 or query[f])):
-            continue
+    for i in range(first, last):
+        f = todo[i]
         m = _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, f, out, n)
         if m > out.shape[0]:
             grown = np.empty((max(2 * out.shape[0], m), 2), np.int64)
@@ -552,7 +551,9 @@ def _box_pairs(points, faces, planes, lo, hi, ok, group, query, cell, start, ent
     def part(*args):
         parts[args[-2]] = _pair_range(*args)
 
-    for_ranges(part, faces.shape[0], points, faces, planes, lo, hi, ok, group, query, cell, start, entries, cells,
+    # the usable (queried) faces, ascending, split evenly between the threads
+    todo = np.flatnonzero(ok if query.shape[0] == 0 else ok & query)
+    for_ranges(part, len(todo), points, faces, planes, lo, hi, todo, group, query, cell, start, entries, cells,
                size, min_items=HEAVY_ITEMS_PER_RANGE)
     return parts[0] if len(parts) == 1 else np.concatenate([parts[first] for first in sorted(parts)])
 
