@@ -768,9 +768,10 @@ def mesh_problems(points, faces, *, query=None) -> list[str]:
     return _problems(pts, fcs, query, None)
 
 
-def _problems(pts, fcs, query, shells, twins=None) -> list[str]:
+def _problems(pts, fcs, query, shells, twins=None, one_fan=False) -> list[str]:
     """:func:`mesh_problems` of a validated mesh, with its :func:`_shells` and :func:`halfedge_twins` when
-    known."""
+    known; ``one_fan``: the faces around every vertex are known to form one fan (:func:`_split_touching` split
+    none of its vertices)."""
     n = len(pts)
     problems = []
     partner, others = halfedge_twins(fcs, n) if twins is None else twins
@@ -787,7 +788,7 @@ def _problems(pts, fcs, query, shells, twins=None) -> list[str]:
             problems.append(f"{same_way} edges run the same way in two faces (inconsistent winding)")
         if problems:
             return problems
-    _, n_split = _fans(fcs, partner, n)
+    n_split = n if one_fan else _fans(fcs, partner, n)[1]
     if n_split != n:
         problems.append(f"{n_split - n} vertices join separate fans of faces")
     if len(fcs) == 0:
@@ -892,7 +893,8 @@ def _finalized(result: RepairResult) -> RepairResult:
             changed = changed[used]
     problems = []
     if len(result.faces):  # empty: nothing left, which is a valid result
-        problems = _problems(result.points, result.faces, _any_corner(changed, result.faces), shells, twins)
+        problems = _problems(result.points, result.faces, _any_corner(changed, result.faces), shells, twins,
+                             one_fan=split is not None and twins is not None)
     if problems:
         raise RepairError("the result would not be a closed, oriented 2-manifold without self-intersections: "
                           + "; ".join(problems))
