@@ -138,12 +138,16 @@ class RepairResult:
 # --- cutting ---------------------------------------------------------------------------------------------------
 
 
-def _edge_keys(canon: np.ndarray, faces: np.ndarray) -> np.ndarray:
+@njit(cache=True)
+def _edge_keys(canon, faces):
     """Key a * V + b (a < b, canonical vertices) of every face edge k (from corner k to k + 1): (F, 3)."""
-    a = canon[faces]
-    b = a[:, [1, 2, 0]]
-    n = len(canon)
-    return np.minimum(a, b) * n + np.maximum(a, b)
+    n = canon.shape[0]
+    out = np.empty(faces.shape, np.int64)
+    for f in range(faces.shape[0]):
+        for k in range(3):
+            a, b = canon[faces[f, k]], canon[faces[f, (k + 1) % 3]]
+            out[f, k] = min(a, b) * n + max(a, b)
+    return out
 
 
 @njit(cache=True)
@@ -191,18 +195,39 @@ def _face_points(fcs: np.ndarray, canon: np.ndarray, curves: IntersectionCurves)
     edge of the face (also those a neighbour's segment put there), so that
     no cut leaves a T-junction.
     """
-    face = np.repeat(np.concatenate([curves.pairs[:, 0], curves.pairs[:, 1]]), 2)
-    point = np.concatenate([curves.segments, curves.segments]).ravel()
-    loc = np.concatenate([curves.locations[:, :, 0], curves.locations[:, :, 1]]).ravel()
-    # curve points inside edges go to every face with that edge
+    return unique_rows(_face_point_rows(fcs, canon, curves.pairs, curves.segments, curves.locations))[0]
+
+
+@njit(cache=True)
+def _face_point_rows(fcs, canon, pairs, segments, locations):
+    """The rows of :func:`_face_points`, unsorted and with repeats: (face, point, location) of every segment end
+    on each of its two faces, then of every end inside an edge on every face with that edge."""
+    n_seg = segments.shape[0]
+    own = np.empty((4 * n_seg, 3), np.int64)
+    n_edge = 0
+    for side in range(2):
+        for s in range(n_seg):
+            for e in range(2):
+                r = 2 * n_seg * side + 2 * s + e
+                own[r, 0], own[r, 1], own[r, 2] = pairs[s, side], segments[s, e], locations[s, e, side]
+                if 3 <= locations[s, e, side] < 6:
+                    n_edge += 1
     keys = _edge_keys(canon, fcs)
-    on_edge = (loc >= 3) & (loc < 6)
-    edge_key = keys[face[on_edge], loc[on_edge] - 3]
+    on_edge = np.empty(n_edge, np.int64)  # the own rows inside an edge, and the key of that edge
+    edge_key = np.empty(n_edge, np.int64)
+    n_edge = 0
+    for r in range(own.shape[0]):
+        if 3 <= own[r, 2] < 6:
+            on_edge[n_edge] = r
+            edge_key[n_edge] = keys[own[r, 0], own[r, 2] - 3]
+            n_edge += 1
     rows, slots = _edge_matches(edge_key, keys.ravel())
-    face = np.concatenate([face, slots // 3])
-    point = np.concatenate([point, point[on_edge][rows]])
-    loc = np.concatenate([loc, 3 + slots % 3])
-    return unique_rows(np.stack([face, point, loc], axis=1))[0]
+    out = np.empty((own.shape[0] + rows.shape[0], 3), np.int64)
+    out[:own.shape[0]] = own
+    for i in range(rows.shape[0]):
+        r = own.shape[0] + i
+        out[r, 0], out[r, 1], out[r, 2] = slots[i] // 3, own[on_edge[rows[i]], 1], 3 + slots[i] % 3
+    return out
 
 
 def _cut_faces(pts, fcs, canon, curves):
