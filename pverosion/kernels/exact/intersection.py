@@ -558,17 +558,29 @@ def _box_pairs(points, faces, planes, lo, hi, ok, group, query, cell, start, ent
     return parts[0] if len(parts) == 1 else np.concatenate([parts[first] for first in sorted(parts)])
 
 
-def _near_query(lo: np.ndarray, hi: np.ndarray, ok: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, int]:
+@njit(cache=True, error_model="numpy")
+def _near_query(lo, hi, ok, query):
     """``ok`` (F,) narrowed to the faces whose boxes (``lo``, ``hi`` (F, 3)) meet the box around the queried
     usable faces (only they can meet a queried face), and its count; none when no usable face is queried."""
-    queried = query & ok
-    if not queried.any():
-        return np.zeros_like(ok), 0
-    top, bottom = hi[queried].max(axis=0), lo[queried].min(axis=0)
-    near = ok.copy()
-    for d in range(3):  # column by column: np.all over rows of three is slow
-        near &= (lo[:, d] <= top[d]) & (hi[:, d] >= bottom[d])
-    return near, int(np.count_nonzero(near))
+    top = np.full(3, -np.inf)
+    bottom = np.full(3, np.inf)
+    queried = False
+    for f in range(ok.shape[0]):
+        if ok[f] and query[f]:
+            queried = True
+            for d in range(3):
+                top[d] = max(top[d], hi[f, d])
+                bottom[d] = min(bottom[d], lo[f, d])
+    near = np.zeros(ok.shape[0], np.bool_)
+    n = 0
+    if not queried:
+        return near, n
+    for f in range(ok.shape[0]):
+        if (ok[f] and lo[f, 0] <= top[0] and hi[f, 0] >= bottom[0] and lo[f, 1] <= top[1] and hi[f, 1] >= bottom[1]
+                and lo[f, 2] <= top[2] and hi[f, 2] >= bottom[2]):
+            near[f] = True
+            n += 1
+    return near, n
 
 
 def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
