@@ -24,7 +24,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 from pverosion.kernels._scatter import CHUNKS
 
-__all__ = ["HEAVY_ITEMS_PER_RANGE", "MIN_ITEMS_PER_RANGE", "for_chunks", "for_ranges"]
+__all__ = ["HEAVY_ITEMS_PER_RANGE", "MIN_ITEMS_PER_RANGE", "for_chunks", "for_ranges", "range_count"]
 
 MIN_ITEMS_PER_RANGE = 2048
 """Smallest range handed to a thread by default: below it, one call in the calling thread is cheaper."""
@@ -84,9 +84,14 @@ def for_ranges(kernel: Callable, n_items: int, *args, min_items: int = MIN_ITEMS
     min_items : int, default: MIN_ITEMS_PER_RANGE
         Smallest range worth a thread; lower it for kernels with much work per item.
     """
-    parts = max(1, min(_threads(), n_items // max(1, min_items)))
+    parts = range_count(n_items, min_items=min_items)
     bounds = [p * n_items // parts for p in range(parts + 1)]
     _run([(kernel, (*args, bounds[p], bounds[p + 1])) for p in range(parts)])
+
+
+def range_count(n_items: int, *, min_items: int = MIN_ITEMS_PER_RANGE) -> int:
+    """Number of ranges :func:`for_ranges` splits ``n_items`` into: one per thread, none below ``min_items``."""
+    return max(1, min(_threads(), n_items // max(1, min_items)))
 
 
 def _chunk_group(kernel: Callable, chunks: range, args: tuple) -> None:

@@ -18,7 +18,7 @@ from numba import njit, prange
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range, chunk_total
 from pverosion.kernels._threads import for_chunks, for_ranges
-from pverosion.kernels.mesh.geometry import face_normal_terms, meyer_corner_areas, vertex_normals
+from pverosion.kernels.mesh.geometry import face_normal_terms, mixed_corner_areas, vertex_normals
 from pverosion.kernels.mesh.topology import locality_sorted, vertex_face_incidence
 from pverosion.kernels.validation import InvalidMeshError, as_faces, as_points
 
@@ -73,20 +73,32 @@ def _normal_frame(normal):
     return u, v3.cross(normal, u)
 
 
-@njit(cache=True, error_model="numpy")
-def _fit_face_tensor(e0, e1, e2, dn0, dn1, dn2):
+@njit(cache=True, error_model="numpy", nogil=True)
+def _frame_range(normals, tangents, start, stop):
+    """First tangent of the :func:`_normal_frame` of vertices ``start`` to ``stop``; zero where the normal is."""
+    for i in range(start, stop):
+        nrm = v3.row(normals, i)
+        if v3.dot(nrm, nrm) != 0.0:
+            v3.store(tangents, i, _normal_frame(nrm)[0])
+
+
+def _vertex_tangents(normals: np.ndarray) -> np.ndarray:
+    """The tangent ``u`` (V, 3) of every vertex frame; the frame is (u, normal x u, normal)."""
+    tangents = np.zeros_like(normals)
+    for_ranges(_frame_range, normals.shape[0], normals, tangents)
+    return tangents
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _fit_face_tensor(e0, e1, e2, l0, n, nn, dn0, dn1, dn2):
     """Least-squares second fundamental form of one face from its edges and normal differences.
 
-    Returns ``(ok, t, b, n, a, bb, c)``: the face frame (tangent ``t`` along
-    ``e0``, bitangent ``b``, unit normal ``n``) and the tensor
-    ``[[a, bb], [bb, c]]`` in it; ``ok`` is False for a degenerate face.
+    ``l0`` is ``|e0|^2``, ``n = e0 x e1`` and ``nn = |n|`` (nonzero). Returns
+    ``(ok, t, b, n, a, bb, c)``: the face frame (tangent ``t`` along ``e0``,
+    bitangent ``b``, unit normal ``n``) and the tensor ``[[a, bb], [bb, c]]``
+    in it; ``ok`` is False when the system is singular.
     """
-    zero = (0.0, 0.0, 0.0)
-    n = v3.cross(e0, e1)
-    nn = v3.norm(n)
-    if nn <= 1e-12 * (v3.dot(e0, e0) + v3.dot(e1, e1) + v3.dot(e2, e2)):
-        return False, zero, zero, zero, 0.0, 0.0, 0.0
-    t = v3.scale(e0, 1.0 / v3.norm(e0))
+    t = v3.scale(e0, 1.0 / np.sqrt(l0))
     n = v3.scale(n, 1.0 / nn)
     b = v3.cross(n, t)
     u0, u1, u2 = v3.dot(e0, t), v3.dot(e1, t), v3.dot(e2, t)
@@ -104,25 +116,27 @@ def _fit_face_tensor(e0, e1, e2, dn0, dn1, dn2):
     minor = s_mid * s_vv - s_uv * s_uv
     det = s_uu * minor - s_uv * s_uv * s_vv
     if det == 0.0:
-        return False, zero, zero, zero, 0.0, 0.0, 0.0
-    ta = (m0 * minor - s_uv * (m1 * s_vv - s_uv * m2)) / det
-    tb = (s_uu * (m1 * s_vv - s_uv * m2) - m0 * s_uv * s_vv) / det
-    tc = (s_uu * (s_mid * m2 - s_uv * m1) - s_uv * s_uv * m2 + m0 * s_uv * s_uv) / det
+        return False, t, b, n, 0.0, 0.0, 0.0
+    inv = 1.0 / det
+    mid = m1 * s_vv - s_uv * m2
+    ta = (m0 * minor - s_uv * mid) * inv
+    tb = (s_uu * mid - m0 * s_uv * s_vv) * inv
+    tc = (s_uu * (s_mid * m2 - s_uv * m1) - s_uv * s_uv * m2 + m0 * s_uv * s_uv) * inv
     return True, t, b, n, ta, tb, tc
 
 
-@njit(cache=True, error_model="numpy")
-def _to_vertex_frame(nrm, t, b, nf, ta, tb, tc):
+@njit(cache=True, error_model="numpy", inline="always")
+def _to_vertex_frame(nrm, u, t, b, nf, ta, tb, tc):
     """Tensor ``[[ta, tb], [tb, tc]]`` of a face frame expressed in the frame of a vertex.
 
-    The vertex frame (u, v, nrm) of :func:`_normal_frame` is rotated rigidly
-    into the face plane (normal ``nf``) and expressed in the face frame (t, b).
-    Returns (ku, kuv, kv).
+    The vertex frame (u, nrm x u, nrm) of :func:`_normal_frame` is rotated
+    rigidly into the face plane (normal ``nf``) and expressed in the face
+    frame (t, b). Returns (ku, kuv, kv).
     """
     align = 1.0 + v3.dot(nrm, nf)
     if align <= 1e-12 or v3.dot(nrm, nrm) == 0.0:
         return 0.0, 0.0, 0.0  # no vertex normal, or the face is folded fully against it
-    u, v = _normal_frame(nrm)
+    v = v3.cross(nrm, u)
     inv = 1.0 / align
     dt = v3.dot(nrm, t) * inv
     db = v3.dot(nrm, b) * inv
@@ -140,66 +154,79 @@ def _to_vertex_frame(nrm, t, b, nf, ta, tb, tc):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _face_corners(points, faces, normals, f):
+def _face_corners(points, faces, normals, tangents, f):
     """Corner areas (w0, w1, w2) of face ``f`` and its tensor in the frames of its three vertices.
 
-    Returns ``(w0, w1, w2, t0, t1, t2)`` with each ``t_k = (ku, kuv, kv)``; a
-    degenerate face keeps its (zero) areas and has zero tensors.
+    ``tangents`` holds the first tangent of each vertex frame
+    (:func:`_vertex_tangents`). Returns ``(w0, w1, w2, t0, t1, t2)`` with each
+    ``t_k = (ku, kuv, kv)``; a degenerate face keeps its (zero) areas and has
+    zero tensors.
     """
+    zero = (0.0, 0.0, 0.0)
     i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
     p0, p1, p2 = v3.row(points, i0), v3.row(points, i1), v3.row(points, i2)
     # edge j is opposite corner j; the normal difference is taken along the same direction
     e0, e1, e2 = v3.sub(p2, p1), v3.sub(p0, p2), v3.sub(p1, p0)
+    l0, l1, l2 = v3.dot(e0, e0), v3.dot(e1, e1), v3.dot(e2, e2)
+    n = v3.cross(e0, e1)
+    nn = v3.norm(n)
+    w0, w1, w2 = mixed_corner_areas(0.5 * nn, l0, l1, l2, e0, e1, e2)
+    if nn <= 1e-12 * (l0 + l1 + l2):
+        return w0, w1, w2, zero, zero, zero
     n0, n1, n2 = v3.row(normals, i0), v3.row(normals, i1), v3.row(normals, i2)
-    w0, w1, w2 = meyer_corner_areas(e0, e1, e2)
-    ok, t, b, nf, ta, tb, tc = _fit_face_tensor(e0, e1, e2, v3.sub(n2, n1), v3.sub(n0, n2), v3.sub(n1, n0))
+    ok, t, b, nf, ta, tb, tc = _fit_face_tensor(e0, e1, e2, l0, n, nn, v3.sub(n2, n1), v3.sub(n0, n2),
+                                                v3.sub(n1, n0))
     if not ok:
-        ta = tb = tc = 0.0
-    return (w0, w1, w2, _to_vertex_frame(n0, t, b, nf, ta, tb, tc), _to_vertex_frame(n1, t, b, nf, ta, tb, tc),
-            _to_vertex_frame(n2, t, b, nf, ta, tb, tc))
+        return w0, w1, w2, zero, zero, zero
+    return (w0, w1, w2, _to_vertex_frame(n0, v3.row(tangents, i0), t, b, nf, ta, tb, tc),
+            _to_vertex_frame(n1, v3.row(tangents, i1), t, b, nf, ta, tb, tc),
+            _to_vertex_frame(n2, v3.row(tangents, i2), t, b, nf, ta, tb, tc))
 
 
-@njit(cache=True, error_model="numpy")
-def _add_corner(acc, i, w, tensor):
-    acc[i, 0] += w * tensor[0]
-    acc[i, 1] += w * tensor[1]
-    acc[i, 2] += w * tensor[2]
-    acc[i, 3] += w
+@njit(cache=True, error_model="numpy", inline="always")
+def _add_corner(acc, c, i, w, tensor):
+    acc[c, i, 0] += w * tensor[0]
+    acc[c, i, 1] += w * tensor[1]
+    acc[c, i, 2] += w * tensor[2]
+    acc[c, i, 3] += w
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _tensor_chunk(points, faces, normals, acc, c):
+def _tensor_chunk(points, faces, normals, tangents, acc, c):
     """Add the corner-area-weighted face tensors of chunk ``c`` of the faces, in the vertex frames, and the
     weights into ``acc[c]``, which holds (ku, kuv, kv, w) per vertex."""
     start, stop = chunk_range(faces.shape[0], c)
     for f in range(start, stop):
-        w0, w1, w2, t0, t1, t2 = _face_corners(points, faces, normals, f)
-        _add_corner(acc[c], faces[f, 0], w0, t0)
-        _add_corner(acc[c], faces[f, 1], w1, t1)
-        _add_corner(acc[c], faces[f, 2], w2, t2)
+        w0, w1, w2, t0, t1, t2 = _face_corners(points, faces, normals, tangents, f)
+        _add_corner(acc, c, faces[f, 0], w0, t0)
+        _add_corner(acc, c, faces[f, 1], w1, t1)
+        _add_corner(acc, c, faces[f, 2], w2, t2)
 
 
-def _vertex_tensors(points: np.ndarray, faces: np.ndarray, normals: np.ndarray) -> np.ndarray:
+def _vertex_tensors(points: np.ndarray, faces: np.ndarray, normals: np.ndarray,
+                    tangents: np.ndarray) -> np.ndarray:
     """Per chunk of faces, the corner-area-weighted sums of the face tensors in the
     vertex frames, and the weight sums: shape (CHUNKS, V, 4) holding (ku, kuv, kv, w)."""
     acc = np.zeros((CHUNKS, points.shape[0], 4))
-    for_chunks(_tensor_chunk, faces.shape[0], points, faces, normals, acc)
+    for_chunks(_tensor_chunk, faces.shape[0], points, faces, normals, tangents, acc)
     return acc
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _diagonalise(nrm, ku, kuv, kv, total):
-    """Principal curvatures and directions (k1, k2, d1, d2) of the summed tensor of a vertex with normal ``nrm``.
+def _diagonalise(nrm, u, ku, kuv, kv, total):
+    """Principal curvatures and directions (k1, k2, d1, d2) of the summed tensor of a vertex.
 
+    ``nrm`` is the vertex normal and ``u`` the first tangent of its frame;
     ``ku, kuv, kv`` are sums weighted by the corner areas, ``total`` their sum;
     a vertex without area or normal gets zeros.
     """
     zero = (0.0, 0.0, 0.0)
     if total <= 0.0 or v3.dot(nrm, nrm) == 0.0:
         return 0.0, 0.0, zero, zero
-    ku /= total
-    kuv /= total
-    kv /= total
+    inv = 1.0 / total
+    ku *= inv
+    kuv *= inv
+    kv *= inv
     # Jacobi rotation diagonalising [[ku, kuv], [kuv, kv]]
     cs = 1.0
     sn = 0.0
@@ -214,7 +241,7 @@ def _diagonalise(nrm, ku, kuv, kv, total):
         sn = tt * cs
     a1 = ku - tt * kuv
     a2 = kv + tt * kuv
-    u, v = _normal_frame(nrm)
+    v = v3.cross(nrm, u)
     p1 = v3.sub(v3.scale(u, cs), v3.scale(v, sn))
     if a1 < a2:
         a1, a2 = a2, a1
@@ -223,23 +250,23 @@ def _diagonalise(nrm, ku, kuv, kv, total):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _curvature_range(normals, acc, k1, k2, d1, d2, area, start, stop):
+def _curvature_range(normals, tangents, acc, k1, k2, d1, d2, area, start, stop):
     """Average the corner tensors of vertices ``start`` to ``stop`` and diagonalise them."""
     for i in range(start, stop):
         total = chunk_total(acc, i, 3)
         area[i] = total
-        k1[i], k2[i], p1, p2 = _diagonalise(v3.row(normals, i), chunk_total(acc, i, 0), chunk_total(acc, i, 1),
-                                            chunk_total(acc, i, 2), total)
+        k1[i], k2[i], p1, p2 = _diagonalise(v3.row(normals, i), v3.row(tangents, i), chunk_total(acc, i, 0),
+                                            chunk_total(acc, i, 1), chunk_total(acc, i, 2), total)
         v3.store(d1, i, p1)
         v3.store(d2, i, p2)
 
 
-def _vertex_curvatures(normals: np.ndarray, acc: np.ndarray) -> tuple[np.ndarray, ...]:
+def _vertex_curvatures(normals: np.ndarray, tangents: np.ndarray, acc: np.ndarray) -> tuple[np.ndarray, ...]:
     """Average the corner tensors of every vertex and diagonalise them: (k1, k2, d1, d2, area)."""
     n_vertices = normals.shape[0]
     k1, k2, area = np.zeros(n_vertices), np.zeros(n_vertices), np.zeros(n_vertices)
     d1, d2 = np.zeros((n_vertices, 3)), np.zeros((n_vertices, 3))
-    for_ranges(_curvature_range, n_vertices, normals, acc, k1, k2, d1, d2, area)
+    for_ranges(_curvature_range, n_vertices, normals, tangents, acc, k1, k2, d1, d2, area)
     return k1, k2, d1, d2, area
 
 
@@ -281,8 +308,8 @@ def _changed(points, before):
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
-def _track(points, faces, indptr, face_ids, corners, vertices, face_list, curved, terms, normals, contrib, k1, k2,
-           d1, d2, area):
+def _track(points, faces, indptr, face_ids, corners, vertices, face_list, curved, terms, normals, tangents, contrib,
+           k1, k2, d1, d2, area):
     """Recompute the normal terms and tensors of ``face_list``, the normals of ``vertices`` and the curvatures of
     ``curved``; every vertex sums its faces in incidence order."""
     for q in prange(face_list.shape[0]):
@@ -298,10 +325,12 @@ def _track(points, faces, indptr, face_ids, corners, vertices, face_list, curved
             f, k = face_ids[m], corners[m]
             total = v3.add(total, (terms[f, k, 0], terms[f, k, 1], terms[f, k, 2]))
         length = v3.norm(total)
-        v3.store(normals, v, v3.scale(total, 1.0 / length) if length > 0.0 else (0.0, 0.0, 0.0))
+        nrm = v3.scale(total, 1.0 / length) if length > 0.0 else (0.0, 0.0, 0.0)
+        v3.store(normals, v, nrm)
+        v3.store(tangents, v, _normal_frame(nrm)[0] if length > 0.0 else (0.0, 0.0, 0.0))
     for q in prange(face_list.shape[0]):
         f = face_list[q]
-        w0, w1, w2, t0, t1, t2 = _face_corners(points, faces, normals, f)
+        w0, w1, w2, t0, t1, t2 = _face_corners(points, faces, normals, tangents, f)
         for k, (w, t) in enumerate(((w0, t0), (w1, t1), (w2, t2))):
             contrib[f, k, 0], contrib[f, k, 1], contrib[f, k, 2] = w * t[0], w * t[1], w * t[2]
             contrib[f, k, 3] = w
@@ -315,7 +344,7 @@ def _track(points, faces, indptr, face_ids, corners, vertices, face_list, curved
             kv += contrib[f, k, 2]
             total += contrib[f, k, 3]
         area[v] = total
-        k1[v], k2[v], p1, p2 = _diagonalise(v3.row(normals, v), ku, kuv, kv, total)
+        k1[v], k2[v], p1, p2 = _diagonalise(v3.row(normals, v), v3.row(tangents, v), ku, kuv, kv, total)
         v3.store(d1, v, p1)
         v3.store(d2, v, p2)
 
@@ -364,6 +393,7 @@ class CurvatureTracker:
         self._terms = np.zeros((n_faces, 3, 3))
         self._contrib = np.zeros((n_faces, 3, 4))
         self._normals = np.zeros((n_vertices, 3))
+        self._tangents = np.zeros((n_vertices, 3))
         self._k = (np.zeros(n_vertices), np.zeros(n_vertices), np.zeros((n_vertices, 3)), np.zeros((n_vertices, 3)),
                    np.zeros(n_vertices))
         self._points: np.ndarray | None = None
@@ -380,7 +410,7 @@ class CurvatureTracker:
         else:
             vertices, face_list, curved = _dirty(_changed(pts, self._points), self.faces, indptr, face_ids)
         _track(pts, self.faces, indptr, face_ids, corners, vertices, face_list, curved, self._terms, self._normals,
-               self._contrib, *self._k)
+               self._tangents, self._contrib, *self._k)
         self._points = pts.copy()
         k1, k2, d1, d2, area = (_read_only(a) for a in self._k)
         return CurvatureResult(k1=k1, k2=k2, direction1=d1, direction2=d2, normals=_read_only(self._normals),
@@ -460,7 +490,8 @@ class CurvatureOperator:
             nrm = np.ascontiguousarray(normals, dtype=np.float64)
             if nrm.shape != pts.shape:
                 raise ValueError(f"normals must have shape {pts.shape}; got {nrm.shape}")
-        k1, k2, d1, d2, area = _vertex_curvatures(nrm, _vertex_tensors(pts, self.faces, nrm))
+        tangents = _vertex_tangents(nrm)
+        k1, k2, d1, d2, area = _vertex_curvatures(nrm, tangents, _vertex_tensors(pts, self.faces, nrm, tangents))
         return CurvatureResult(k1=k1, k2=k2, direction1=d1, direction2=d2, normals=nrm, point_areas=area)
 
 

@@ -171,7 +171,7 @@ def _location(left0, left1, left2):
     return _OUT  # a degenerate triangle
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _vertex_in(p, tri, axis, orientation, v):
     """Location of vertex ``v``, which lies in the plane of ``tri``, on the triangle."""
     s0 = _o2(p, axis, tri[0], tri[1], v) * orientation
@@ -180,7 +180,7 @@ def _vertex_in(p, tri, axis, orientation, v):
     return _location(s0, s1, s2)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _crossing_in(p, tri, a, b, side_b):
     """Location on ``tri`` of the point where edge (a, b) crosses the triangle's plane (``side_b``: the sign of
     orient3d(tri, b), nonzero)."""
@@ -205,7 +205,7 @@ def _case(s):
     return -1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _ends(s):
     """Ends of a triangle's interval on the other plane: their number n and each end's 3 * kind (0 vertex / 1 edge)
     + index, packed 3 bits an end (end e: ``(ends >> 3 * e) & 7``); no arrays, as this runs for every pair."""
@@ -228,7 +228,7 @@ def _edge_key(canon, n_vertices, a, b):
     return min(a, b) * n_vertices + max(a, b)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _key(canon, n_vertices, tri_f, tri_g, f, g, loc_f, loc_g):
     """Symbolic key of a point from its locations on faces f and g."""
     if loc_f < _EDGE:
@@ -247,7 +247,7 @@ def _key(canon, n_vertices, tri_f, tri_g, f, g, loc_f, loc_g):
     return EDGE_FACE, _edge_key(canon, n_vertices, tri_g[j], tri_g[(j + 1) % 3]), f
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _apart_in_projection(p, tf, tg):
     """Whether two faces surely do not meet (faces that share one vertex: meet only there), decided exactly in
     the projection along the first face's largest normal component, where an edge line of either face must
@@ -867,7 +867,7 @@ def _one_name_per_point(pts, fcs, canon, plane, keys, pairs, locs):
         face, other = end_faces[rows, side], end_faces[rows, 1 - side]
         k = end_locs[rows, side] - _EDGE
         a, b = canon[fcs[face, k]], canon[fcs[face, (k + 1) % 3]]
-        crossing = _crosses_plane(pts, fcs, a, b, other)
+        crossing = _crosses_plane(pts, fcs, a, b, other) if len(rows) else np.zeros(0, np.bool_)  # compiled if used
         named.append(rows[crossing])
         aliases.append(np.stack([np.full(crossing.sum(), EDGE_FACE),
                                  (np.minimum(a, b) * n_vertices + np.maximum(a, b))[crossing], plane[other[crossing]]],
@@ -1106,13 +1106,17 @@ def _walk_polylines(segs, n_points):
     """Polylines through the segments (S, 2): the points of all in order (flat) and the offsets of each."""
     n_seg = segs.shape[0]
     ends = np.concatenate((segs[:, 0], segs[:, 1]))
-    order = np.argsort(ends, kind="mergesort")  # entry j is segment j % S
     start = np.zeros(n_points + 1, np.int64)
     for j in range(2 * n_seg):
         start[ends[j] + 1] += 1
     degree = start[1:].copy()
     for v in range(n_points):
         start[v + 1] += start[v]
+    order = np.empty(2 * n_seg, np.int64)  # entry j is segment j % S; stable counting sort by end point
+    fill = start[:n_points].copy()
+    for j in range(2 * n_seg):
+        order[fill[ends[j]]] = j
+        fill[ends[j]] += 1
     used = np.zeros(n_seg, np.bool_)
     path = np.empty(2 * n_seg + n_seg, np.int64)
     bounds = [0]

@@ -301,6 +301,21 @@ def _argsort(values: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
+def _lower_bound(sorted_values: np.ndarray, value: int) -> int:
+    """First index of the ascending (n,) int64 array ``sorted_values`` whose entry is >= ``value`` (n if none),
+    as ``np.searchsorted``, whose compilation costs more."""
+    lo = 0
+    hi = sorted_values.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if sorted_values[mid] < value:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True)
 def _empty_result() -> tuple[np.ndarray, np.ndarray]:
     """The failure result: an empty (0, 3) triangle array and an empty region array."""
     return np.empty((0, 3), dtype=np.int64), np.empty(0, dtype=np.int64)
@@ -311,7 +326,7 @@ def _empty_result() -> tuple[np.ndarray, np.ndarray]:
 # ---------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _insert_point(xy: np.ndarray, tri: np.ndarray, reg: np.ndarray, nt: int, q: int) -> int:
     """Insert point ``q`` into the triangulation ``tri[:nt]`` (room for two more rows); return the new count.
 
@@ -381,7 +396,7 @@ def _incircle(xy: np.ndarray, a: int, b: int, c: int, d: int) -> tuple[float, fl
     return det, size
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _delaunay_flips(xy: np.ndarray, tri: np.ndarray, nt: int, eu: np.ndarray, ev: np.ndarray) -> None:
     """Flip the unconstrained edges of the first ``nt`` triangles towards the constrained Delaunay
     triangulation, in place (graph edges ``eu``-``ev`` stay).
@@ -397,13 +412,13 @@ def _delaunay_flips(xy: np.ndarray, tri: np.ndarray, nt: int, eu: np.ndarray, ev
     fixed = np.empty(eu.shape[0], np.int64)
     for e in range(eu.shape[0]):
         fixed[e] = min(eu[e], ev[e]) * n + max(eu[e], ev[e])
-    fixed.sort()
+    fixed = fixed[_argsort(fixed)]
     keys = np.empty(3 * nt, np.int64)
     for _ in range(_FLIP_SWEEPS):
         for t in range(nt):
             for k in range(3):
                 keys[3 * t + k] = tri[t, k] * n + tri[t, (k + 1) % 3]
-        order = np.argsort(keys)
+        order = _argsort(keys)
         sorted_keys = keys[order]
         flipped = False
         for t in range(nt):
@@ -412,10 +427,10 @@ def _delaunay_flips(xy: np.ndarray, tri: np.ndarray, nt: int, eu: np.ndarray, ev
                 if a > b:
                     continue  # each edge once, from its triangle with a < b
                 undirected = a * n + b
-                q = np.searchsorted(fixed, undirected)
+                q = _lower_bound(fixed, undirected)
                 if q < fixed.shape[0] and fixed[q] == undirected:
                     continue
-                q = np.searchsorted(sorted_keys, b * n + a)
+                q = _lower_bound(sorted_keys, b * n + a)
                 if q >= sorted_keys.shape[0] or sorted_keys[q] != b * n + a:
                     continue
                 u = order[q] // 3
@@ -443,7 +458,7 @@ def _delaunay_flips(xy: np.ndarray, tri: np.ndarray, nt: int, eu: np.ndarray, ev
 # ---------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _boundary_cycle(location: np.ndarray, edge_param: np.ndarray) -> np.ndarray:
     """(nb,) int64 boundary cycle: corner 0, edge 0 points by ``edge_param``, corner 1, ..., edge 2 points."""
     n = location.shape[0]
@@ -475,7 +490,7 @@ def _boundary_cycle(location: np.ndarray, edge_param: np.ndarray) -> np.ndarray:
     return bnd
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _graph_edges(bnd: np.ndarray, location: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Undirected edges ``(eu[e], ev[e])``: the boundary pieces, then the deduplicated interior segments.
 
@@ -514,7 +529,7 @@ def _graph_edges(bnd: np.ndarray, location: np.ndarray, segments: np.ndarray) ->
     return eu[:ne], ev[:ne]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _half_edges(
     xy: np.ndarray, eu: np.ndarray, ev: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool]:
@@ -585,7 +600,7 @@ def _half_edges(
     return orig, dest, out_start, out_he, next_he, ok
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _faces(next_he: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(h,) int64 face of every half-edge and (f,) int64 first half-edge of every face (orbits of ``next_he``)."""
     nh = next_he.shape[0]
@@ -604,7 +619,7 @@ def _faces(next_he: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return face_of, face_first[:nf].copy()
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _components(
     xy: np.ndarray, out_start: np.ndarray, out_he: np.ndarray, dest: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -657,7 +672,7 @@ def _components(
     return comp, lexmin[:nc].copy(), outer_he
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _hole_faces(
     xy: np.ndarray,
     lexmin: np.ndarray,
@@ -741,7 +756,7 @@ def _bridge_target(
     return -1
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _merge_holes(
     xy: np.ndarray,
     pt: np.ndarray,
@@ -807,7 +822,7 @@ def _merge_holes(
     return mc, n_occ
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _ear_clip(
     xy: np.ndarray,
     pt: np.ndarray,

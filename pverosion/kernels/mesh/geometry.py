@@ -19,6 +19,7 @@ __all__ = [
     "corner_areas",
     "face_normals",
     "meyer_corner_areas",
+    "mixed_corner_areas",
     "point_areas",
     "signed_volume",
     "vertex_normals",
@@ -140,9 +141,14 @@ def meyer_corner_areas(e0, e1, e2):
     Returns the three corner areas (zero for a degenerate triangle).
     """
     area = 0.5 * v3.norm(v3.cross(e0, e1))
+    return mixed_corner_areas(area, v3.dot(e0, e0), v3.dot(e1, e1), v3.dot(e2, e2), e0, e1, e2)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def mixed_corner_areas(area, l0, l1, l2, e0, e1, e2):
+    """:func:`meyer_corner_areas` from the triangle's area and squared edge lengths ``l0, l1, l2``."""
     if area == 0.0:
         return 0.0, 0.0, 0.0
-    l0, l1, l2 = v3.dot(e0, e0), v3.dot(e1, e1), v3.dot(e2, e2)
     w0 = l0 * (l1 + l2 - l0)
     w1 = l1 * (l2 + l0 - l1)
     w2 = l2 * (l0 + l1 - l2)

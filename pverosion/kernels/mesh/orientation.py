@@ -17,7 +17,8 @@ import numpy as np
 from numba import njit
 
 from pverosion.kernels import _vec3 as v3
-from pverosion.kernels._threads import for_ranges
+from pverosion.kernels._scatter import CHUNKS, chunk_range
+from pverosion.kernels._threads import for_chunks, for_ranges
 from pverosion.kernels.mesh.topology import sorted_twins
 
 __all__ = ["ORIENTATIONS", "Orientation", "SortedOrientation", "orient_faces", "orient_sorted", "winding_number"]
@@ -137,36 +138,50 @@ def _find(parent, v):
 
 
 @njit(cache=True, error_model="numpy")
-def _closed_volumes(points, faces, flip, component, n_comp, others):
-    """Signed volume of every component, with each hole closed by a cone to its rim's centroid, and the
-    largest extent of the points along an axis."""
-    n_vertices = points.shape[0]
+def _centre_extent(points):
+    """Centroid of the points (V, 3) and their largest extent along an axis."""
     origin = np.zeros(3)
     lo = points[0].copy()
     hi = points[0].copy()
-    for v in range(n_vertices):
+    for v in range(points.shape[0]):
         for d in range(3):
             x = points[v, d]
             origin[d] += x
             lo[d] = min(lo[d], x)
             hi[d] = max(hi[d], x)
-    origin /= n_vertices
-    volume = np.zeros(n_comp)
-    parent = np.arange(n_vertices)
-    for f in range(faces.shape[0]):
+    origin /= points.shape[0]
+    return origin, max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2])
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _volume_chunk(points, faces, flip, component, others, origin, volume, rims, c):
+    """Six times the signed volume of the faces of chunk ``c`` per component into ``volume[c]``, and their
+    boundary half-edges into ``rims[c]``."""
+    start, stop = chunk_range(faces.shape[0], c)
+    for f in range(start, stop):
         i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
         if flip[f]:
             i1, i2 = i2, i1
         a = v3.sub(v3.row(points, i0), origin)
         b = v3.sub(v3.row(points, i1), origin)
-        c = v3.sub(v3.row(points, i2), origin)
-        volume[component[f]] += v3.dot(a, v3.cross(b, c))
+        cc = v3.sub(v3.row(points, i2), origin)
+        volume[c, component[f]] += v3.dot(a, v3.cross(b, cc))
         for k in range(3):
             if others[3 * f + k] == 0:
-                ra = _find(parent, faces[f, k])
-                rb = _find(parent, faces[f, (k + 1) % 3])
-                parent[ra] = rb
-    # centroid of each hole's rim, then a cone from it over every rim edge
+                rims[c] += 1
+
+
+@njit(cache=True, error_model="numpy")
+def _hole_cones(points, faces, flip, component, others, origin, volume):
+    """Add to ``volume`` (six times) the cone from the centroid of every hole's rim over the rim's edges."""
+    n_vertices = points.shape[0]
+    parent = np.arange(n_vertices)
+    for h in range(others.shape[0]):
+        if others[h] == 0:
+            f, k = h // 3, h % 3
+            ra = _find(parent, faces[f, k])
+            rb = _find(parent, faces[f, (k + 1) % 3])
+            parent[ra] = rb
     centre = np.zeros((n_vertices, 3))
     count = np.zeros(n_vertices)
     for h in range(others.shape[0]):
@@ -188,7 +203,20 @@ def _closed_volumes(points, faces, flip, component, n_comp, others):
             pa = v3.sub(v3.row(points, a), origin)
             pb = v3.sub(v3.row(points, b), origin)
             volume[component[f]] += v3.dot(pb, v3.cross(pa, apex))
-    return volume / 6.0, max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2])
+
+
+def _closed_volumes(points: np.ndarray, faces: np.ndarray, flip: np.ndarray, component: np.ndarray, n_comp: int,
+                    others: np.ndarray) -> tuple[np.ndarray, float]:
+    """Signed volume of every component, with each hole closed by a cone to its rim's centroid, and the
+    largest extent of the points along an axis."""
+    origin, extent = _centre_extent(points)
+    chunks = np.zeros((CHUNKS, n_comp))
+    rims = np.zeros(CHUNKS, np.int64)
+    for_chunks(_volume_chunk, faces.shape[0], points, faces, flip, component, others, origin, chunks, rims)
+    volume = chunks.sum(axis=0)
+    if rims.any():
+        _hole_cones(points, faces, flip, component, others, origin, volume)
+    return volume / 6.0, extent
 
 
 def orient_faces(

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from pverosion.kernels._threads import for_ranges
+from pverosion.kernels._threads import for_ranges, range_count
 
 __all__ = [
     "EdgeTopology",
@@ -286,38 +286,72 @@ def _put_corners(faces, f, h, fill, after, before, half):
     fill[a2] += 1
 
 
-@njit(cache=True, error_model="numpy")
-def _sort_with_slots(faces, n_vertices):
-    """:func:`_sort_by_min_vertex` and :func:`_corner_slots` of the sorted faces, from two passes over ``faces``.
+@njit(cache=True, error_model="numpy", nogil=True)
+def _count_parts(faces, bounds, lows, counts, start, stop):
+    """For parts ``start`` to ``stop`` of the faces (part ``p`` is ``bounds[p]`` to ``bounds[p + 1]``): the faces
+    per smallest vertex into ``lows[p]`` and the corners per vertex into ``counts[p]``."""
+    for p in range(start, stop):
+        for f in range(bounds[p], bounds[p + 1]):
+            a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
+            lows[p, min(a0, a1, a2)] += 1
+            counts[p, a0] += 1
+            counts[p, a1] += 1
+            counts[p, a2] += 1
 
-    The corners of a vertex come in input face order rather than sorted
-    order, which changes nothing that :func:`_match_slots` computes.
+
+@njit(cache=True, error_model="numpy")
+def _part_offsets(lows, counts):
+    """Turn the per-part counts of :func:`_count_parts` into the first sorted position of each part's faces per
+    smallest vertex and of its corners per vertex, in place; returns the corner ``indptr`` (V + 1,)."""
+    n_parts, n_vertices = lows.shape
+    indptr = np.empty(n_vertices + 1, np.int64)
+    low_pos = 0
+    corner_pos = 0
+    for v in range(n_vertices):
+        indptr[v] = corner_pos
+        for p in range(n_parts):
+            low_pos, lows[p, v] = low_pos + lows[p, v], low_pos
+            corner_pos, counts[p, v] = corner_pos + counts[p, v], corner_pos
+    indptr[n_vertices] = corner_pos
+    return indptr
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _fill_parts(faces, bounds, lows, counts, order, rows, after, before, half, start, stop):
+    """Place the faces of parts ``start`` to ``stop`` at their sorted positions and their corners in the slots."""
+    for p in range(start, stop):
+        fill = counts[p]
+        for f in range(bounds[p], bounds[p + 1]):
+            lo = min(faces[f, 0], faces[f, 1], faces[f, 2])
+            i = lows[p, lo]
+            lows[p, lo] += 1
+            order[i] = f
+            rows[i, 0], rows[i, 1], rows[i, 2] = faces[f, 0], faces[f, 1], faces[f, 2]
+            _put_corners(faces, f, 3 * i, fill, after, before, half)
+
+
+def _sort_with_slots(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, ...]:
+    """:func:`_sort_by_min_vertex` and :func:`_corner_slots` of the sorted faces, as one counting sort.
+
+    The faces are split into one part per thread; each part counts and
+    then places its own faces, from offsets that put the parts in order, so
+    the result is that of one pass over the faces whatever the number of
+    threads. The corners of a vertex come in input face order rather than
+    sorted order, which changes nothing that :func:`_match_slots` computes.
+
+    Returns ``order, rows, indptr, after, before, half``.
     """
     n_faces = faces.shape[0]
-    start = np.zeros(n_vertices + 1, np.int64)
-    indptr = np.zeros(n_vertices + 1, np.int64)
-    for f in range(n_faces):
-        a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
-        start[min(a0, a1, a2) + 1] += 1
-        indptr[a0 + 1] += 1
-        indptr[a1 + 1] += 1
-        indptr[a2 + 1] += 1
-    for v in range(n_vertices):
-        start[v + 1] += start[v]
-        indptr[v + 1] += indptr[v]
-    fill = indptr[:-1].copy()
+    parts = range_count(n_faces)
+    bounds = np.array([p * n_faces // parts for p in range(parts + 1)], np.int64)
+    lows = np.zeros((parts, n_vertices), np.int64)
+    counts = np.zeros((parts, n_vertices), np.int64)
+    for_ranges(_count_parts, parts, faces, bounds, lows, counts, min_items=1)
+    indptr = _part_offsets(lows, counts)
     order = np.empty(n_faces, np.int64)
     rows = np.empty_like(faces)
-    after = np.empty(3 * n_faces, np.int32)
-    before = np.empty(3 * n_faces, np.int32)
-    half = np.empty(3 * n_faces, np.int32)
-    for f in range(n_faces):
-        lo = min(faces[f, 0], faces[f, 1], faces[f, 2])
-        i = start[lo]
-        start[lo] += 1
-        order[i] = f
-        rows[i, 0], rows[i, 1], rows[i, 2] = faces[f, 0], faces[f, 1], faces[f, 2]
-        _put_corners(faces, f, 3 * i, fill, after, before, half)
+    after, before, half = (np.empty(3 * n_faces, np.int32) for _ in range(3))
+    for_ranges(_fill_parts, parts, faces, bounds, lows, counts, order, rows, after, before, half, min_items=1)
     return order, rows, indptr, after, before, half
 
 

@@ -52,7 +52,7 @@ from pverosion.kernels.exact.intersection_curves import (
     trace_polylines,
     unique_rows,
 )
-from pverosion.kernels.exact.polygon_cut import cut_triangles
+from pverosion.kernels.exact.polygon_cut import _lower_bound, cut_triangles
 from pverosion.kernels.exact.predicates import sign_orient2d
 from pverosion.kernels.mesh.degenerate import remove_degenerate_faces
 from pverosion.kernels.mesh.geometry import average_edge_length
@@ -370,7 +370,7 @@ def _patches(faces, n_vertices, cut_edges, pairs_only=False):
             a, b = faces[f, k], faces[f, (k + 1) % 3]
             if a > b:
                 continue  # every edge from the face where it runs upwards
-            at = np.searchsorted(cut_edges, a * n_vertices + b)
+            at = _lower_bound(cut_edges, a * n_vertices + b)
             if at < cut_edges.shape[0] and cut_edges[at] == a * n_vertices + b:
                 continue
             if pairs_only:
@@ -635,7 +635,9 @@ def _representatives(points, faces, patch):
     """A face of every patch, in patch order: the one whose normal has the largest z component (its centroid
     is away from the patch's rim on a coarse patch; rays along z need no second index), the first such face on
     a tie."""
-    n_patches = patch.max() + 1 if patch.shape[0] else 0
+    n_patches = 0
+    for f in range(patch.shape[0]):  # patch.max() + 1, whose compilation costs more
+        n_patches = max(n_patches, patch[f] + 1)
     best = np.full(n_patches, -np.inf)
     out = np.zeros(n_patches, np.int64)
     for f in range(faces.shape[0]):
