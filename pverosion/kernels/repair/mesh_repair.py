@@ -500,7 +500,10 @@ def _few_windings(points, faces, face_group, reps, groups):
     turned = np.empty_like(points)
     query = np.empty(3)
     for a in range(3):
-        if not np.any(axis == a):
+        wanted = False
+        for r in range(n_reps):
+            wanted = wanted or axis[r] == a
+        if not wanted:
             continue
         for v in range(points.shape[0]):  # cyclic: the faces keep their orientation
             turned[v, 0], turned[v, 1], turned[v, 2] = points[v, (a + 1) % 3], points[v, (a + 2) % 3], points[v, a]
@@ -749,7 +752,9 @@ def _shells(points, faces):
 def _shell_sizes(points, faces, shell):
     """Signed volume and area of every shell (labels ``shell`` (F,), 0..S-1): sums over the faces in order of the
     volumes of the tetrahedra from the points' lowest corner and of the faces' areas."""
-    n = shell.max() + 1 if shell.shape[0] else 0
+    n = 0
+    for f in range(shell.shape[0]):  # shell.max() + 1, whose compilation costs more
+        n = max(n, shell[f] + 1)
     origin = np.full(3, np.inf)
     for v in range(points.shape[0]):
         for a in range(3):
