@@ -291,15 +291,6 @@ def _build_grid(cell, ok, size):
 
 
 @njit(cache=True, error_model="numpy")
-def _share_vertex(faces, f, g):
-    for a in range(3):
-        for b in range(3):
-            if faces[f, a] == faces[g, b]:
-                return True
-    return False
-
-
-@njit(cache=True, error_model="numpy")
 def _shared_vertices(faces, f, g):
     n = 0
     for a in range(3):
