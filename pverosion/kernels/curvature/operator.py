@@ -250,25 +250,31 @@ def _diagonalise(nrm, u, ku, kuv, kv, total):
     return a1, a2, p1, v3.cross(nrm, p1)
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
-def _curvature_range(normals, tangents, acc, order, k1, k2, d1, d2, area, normals_out, start, stop):
-    """Average the corner tensors of vertices ``start`` to ``stop`` and diagonalise them.
-
-    With a non-empty ``order`` the results of vertex ``i`` go to row
-    ``order[i]`` (the caller's numbering) and its normal to ``normals_out``;
-    else to row ``i``.
-    """
-    restore = order.shape[0] > 0
-    for i in range(start, stop):
-        o = order[i] if restore else i
-        total = chunk_total(acc, i, 3)
-        area[o] = total
-        k1[o], k2[o], p1, p2 = _diagonalise(v3.row(normals, i), v3.row(tangents, i), chunk_total(acc, i, 0),
+@njit(cache=True, error_model="numpy", inline="always")
+def _vertex_curvature(normals, tangents, acc, i, row, k1, k2, d1, d2, area):
+    """Average the corner tensors of vertex ``i``, diagonalise them and store the results in ``row``."""
+    total = chunk_total(acc, i, 3)
+    area[row] = total
+    k1[row], k2[row], p1, p2 = _diagonalise(v3.row(normals, i), v3.row(tangents, i), chunk_total(acc, i, 0),
                                             chunk_total(acc, i, 1), chunk_total(acc, i, 2), total)
-        v3.store(d1, o, p1)
-        v3.store(d2, o, p2)
-        if restore:
-            v3.store(normals_out, o, v3.row(normals, i))
+    v3.store(d1, row, p1)
+    v3.store(d2, row, p2)
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _curvature_range(normals, tangents, acc, k1, k2, d1, d2, area, start, stop):
+    """Average the corner tensors of vertices ``start`` to ``stop`` and diagonalise them."""
+    for i in range(start, stop):
+        _vertex_curvature(normals, tangents, acc, i, i, k1, k2, d1, d2, area)
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _restored_curvature_range(normals, tangents, acc, order, k1, k2, d1, d2, area, normals_out, start, stop):
+    """:func:`_curvature_range` of local vertices ``start`` to ``stop``, stored with their normals in the
+    caller's rows ``order[i]``."""
+    for i in range(start, stop):
+        _vertex_curvature(normals, tangents, acc, i, order[i], k1, k2, d1, d2, area)
+        v3.store(normals_out, order[i], v3.row(normals, i))
 
 
 def _vertex_curvatures(normals: np.ndarray, tangents: np.ndarray, acc: np.ndarray,
@@ -282,10 +288,12 @@ def _vertex_curvatures(normals: np.ndarray, tangents: np.ndarray, acc: np.ndarra
     k1, k2, area = np.empty(n_vertices), np.empty(n_vertices), np.empty(n_vertices)
     d1, d2 = np.empty((n_vertices, 3)), np.empty((n_vertices, 3))
     if order is None:
-        order, normals_out = np.empty(0, np.int64), normals
+        normals_out = normals
+        for_ranges(_curvature_range, n_vertices, normals, tangents, acc, k1, k2, d1, d2, area)
     else:
         normals_out = np.empty_like(normals)
-    for_ranges(_curvature_range, n_vertices, normals, tangents, acc, order, k1, k2, d1, d2, area, normals_out)
+        for_ranges(_restored_curvature_range, n_vertices, normals, tangents, acc, order, k1, k2, d1, d2, area,
+                   normals_out)
     return CurvatureResult(k1=k1, k2=k2, direction1=d1, direction2=d2, normals=normals_out, point_areas=area)
 
 
