@@ -317,3 +317,48 @@ def test_an_abandoned_claim_is_taken_over_and_a_live_one_is_respected(tmp_path, 
         assert _precompile._claim_path(_spread, (numba.types.uint32,)) is None  # compiled here: nothing to claim
     finally:
         claim.unlink(missing_ok=True)
+
+
+def test_a_helper_only_with_a_spare_core_unless_asked_for(monkeypatch):
+    from pverosion import _precompile
+
+    monkeypatch.delenv("PVEROSION_PRECOMPILE", raising=False)
+    cores = os.cpu_count() or 1
+    monkeypatch.setattr(os, "getloadavg", lambda: (cores - 1.0, 0.0, 0.0))
+    assert _precompile.spare_cpu() == (cores - 1.0 < cores - _precompile.BUSY_LOAD_MARGIN)
+    monkeypatch.setattr(os, "getloadavg", lambda: (float(cores), 0.0, 0.0))
+    assert not _precompile.spare_cpu()
+    with _precompile.helpers_allowed():
+        assert _precompile.start_helper("curvature") is None  # every core busy: no helper
+    monkeypatch.setenv("PVEROSION_PRECOMPILE", "1")
+    assert _precompile.spare_cpu()
+
+
+def test_no_second_helper_while_one_runs(monkeypatch):
+    from pverosion import _precompile
+
+    class Running:
+        pid = -1
+
+        def poll(self):
+            return None
+
+    monkeypatch.setenv("PVEROSION_PRECOMPILE", "1")
+    monkeypatch.setattr(_precompile, "_helper", Running())
+    assert _precompile.start_helper("curvature") is None
+
+
+def test_a_cold_cache_is_told_from_the_first_kernel_of_the_plan(tmp_path, monkeypatch):
+    from pverosion import _precompile
+    from pverosion.kernels.exact.intersection import _spread
+
+    _spread(np.int64(1))  # in the cache now
+    monkeypatch.setattr(_precompile, "_plans", lambda: {
+        "warm": [["pverosion.kernels.exact.intersection", "_spread", "(int64,)", 0.1]],
+        "stale": [["pverosion.kernels.exact.intersection", "no_such_kernel", "(int64,)", 0.1]]})
+    assert not _precompile._looks_cold("warm") and not _precompile._looks_cold("stale")
+    assert not _precompile._looks_cold("unknown")
+    probe = "from pverosion import _precompile\nprint(_precompile._looks_cold('curvature'))"
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(tmp_path / "empty")}
+    done = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "True"
