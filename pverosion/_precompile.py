@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib
+import importlib.util
 import json
 import os
 import subprocess
@@ -364,18 +365,34 @@ def start_helper(stage: str) -> subprocess.Popen | None:
     return _helper
 
 
+def _cache_folder_probe() -> None:
+    """A function numba's cache locators are asked about, in place of a kernel (:func:`_looks_cold`)."""
+
+
 def _looks_cold(stage: str) -> bool:
     """Whether the cache has no entry for the first kernel of ``stage``'s plan (then it has none for the others
-    either, after a fresh install); False when that cannot be told."""
+    either, after a fresh install); False when that cannot be told.
+
+    The kernel's module is not imported: a module whose kernels have explicit
+    signatures compiles them on import. Its cache folder is the one numba's
+    locators give for the module's file, and the kernel's index is named
+    ``<module file stem>.<kernel name>-<line>.py<version>.nbi``.
+    """
     entries = plan(stage)
     if not entries:
         return False
     module, name, _, _ = entries[0]
     try:
-        index = getattr(importlib.import_module(module), name)._cache._cache_file._index_path
-    except Exception:  # noqa: BLE001 - a stale plan or a kernel without a file cache: no early helper
+        from numba.core.caching import CompileResultCacheImpl
+
+        source = importlib.util.find_spec(module).origin
+        if f"def {name}(" not in Path(source).read_text():
+            return False  # a stale plan
+        locators = (cls.from_function(_cache_folder_probe, source) for cls in CompileResultCacheImpl._locator_classes)
+        folder = Path(next(locator for locator in locators if locator is not None).get_cache_path())
+    except Exception:  # noqa: BLE001 - an unusual install: no early helper, the first compilation starts one
         return False
-    return not os.path.exists(index)
+    return not any(folder.glob(f"{Path(source).stem}.{name}-*.nbi"))
 
 
 def start_helper_if_cold(stage: str) -> subprocess.Popen | None:
