@@ -66,6 +66,7 @@ CLAIM_SUFFIX = ".pverosion-compiling"
 _allowed = False  # within helpers_allowed()
 _helper: subprocess.Popen | None = None  # the helper this process started, while it runs
 _waits = False  # shared_compilation waits for kernels another process has claimed
+_holding: set[Path] = set()  # the claims this process holds
 
 
 @cache
@@ -169,7 +170,7 @@ def compile_plan(stage: str) -> int:
             continue
         finally:
             if claim is not None:
-                claim.unlink(missing_ok=True)
+                _release(claim)
     return done
 
 
@@ -222,8 +223,15 @@ def _claim(claim: Path) -> bool:
             return False  # a read-only cache: nothing to share
         with os.fdopen(descriptor, "w") as file:
             file.write(str(os.getpid()))
+        _holding.add(claim)
         return True
     return False
+
+
+def _release(claim: Path) -> None:
+    """Remove a claim this process holds."""
+    _holding.discard(claim)
+    claim.unlink(missing_ok=True)
 
 
 def _wait_for(claim: Path) -> None:
@@ -245,8 +253,10 @@ def shared_compilation(original):
     numba's own index for exactly these argument types, or compiling it if
     the cache has no entry. A claim whose process has ended or older than
     :data:`WAIT_LIMIT_S` is abandoned; the wait never exceeds
-    :data:`WAIT_LIMIT_S`. The helper never waits (:func:`compile_plan` skips
-    what is claimed), so two processes never wait for each other.
+    :data:`WAIT_LIMIT_S`. The helper waits only while it holds no claim (a
+    kernel compiled when its module is imported), and :func:`compile_plan`
+    skips what is claimed: a process waited for never waits itself, so two
+    processes never wait for each other.
     """
 
     def compile(self, sig):
@@ -256,15 +266,15 @@ def shared_compilation(original):
         if claim is None:
             return original(self, sig)
         mine = _claim(claim)
-        if not mine:
-            if _waits:
+        if not mine and claim not in _holding:
+            if _waits or not _holding:
                 _wait_for(claim)
             mine = _claim(claim)  # gone, or abandoned: compile (or load what the other saved)
         try:
             return original(self, sig)
         finally:
             if mine:
-                claim.unlink(missing_ok=True)
+                _release(claim)
 
     compile.original = original
     return compile

@@ -265,8 +265,10 @@ def _claim_of(code_kernel: str, types: str) -> str:
 
 
 @pytest.mark.skipif(os.name != "posix", reason="the claims are for the POSIX compile helper")
-def test_a_kernel_claimed_by_another_process_is_waited_for_and_loaded_not_compiled(tmp_path):
-    """The claimant compiles only after the waiter has started waiting; the waiter then loads its cache entry."""
+@pytest.mark.parametrize("stage", [True, False])
+def test_a_kernel_claimed_by_another_process_is_waited_for_and_loaded_not_compiled(tmp_path, stage):
+    """The claimant compiles only after the waiter has started waiting; the waiter then loads its cache entry.
+    The stage waits always, the helper (``stage`` False) when it holds no claim itself."""
     kernel = "from pverosion.kernels.exact.intersection import _spread as kernel"
     setup = _claim_of(kernel, "(nt.uint16,)")
     claimant = setup + ("_precompile.lock_cache_saves()\nassert _precompile._claim(claim)\nprint('claimed', flush=True)\n"
@@ -277,7 +279,7 @@ def test_a_kernel_claimed_by_another_process_is_waited_for_and_loaded_not_compil
         "    def on_start(self, ev): compiled.append(ev.data['dispatcher'].py_func.__name__)\n"
         "    def on_end(self, ev): pass\n"
         "event.register('numba:compile', Seen())\n_precompile.lock_cache_saves()\n"
-        "_precompile._share_compilations(wait=True)\nprint('waiting', flush=True)\n"
+        f"_precompile._share_compilations(wait={stage})\nprint('waiting', flush=True)\n"
         "kernel.compile(types)\nprint(json.dumps({'compiled': compiled, 'claim_left': claim.exists(),"
         " 'value': kernel(nt.uint16(3))}))\n")
     env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
