@@ -362,8 +362,7 @@ def start_helper(stage: str) -> subprocess.Popen | None:
     """Start the helper process for ``stage`` if :func:`enabled`; None if not started. While it runs, this
     process shares its compilations with it (:func:`shared_compilation`)."""
     global _helper
-    running = _helper is not None and _helper.poll() is None  # started by start_helper_if_cold
-    if running or not enabled() or not worth_a_helper(stage) or not spare_cpu():
+    if _helper is not None or not enabled() or not worth_a_helper(stage) or not spare_cpu():  # one at a time
         return None
     lock_cache_saves()
     package_parent = str(Path(__file__).resolve().parents[1])
