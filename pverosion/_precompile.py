@@ -64,7 +64,7 @@ POLL_S = 0.02
 """Seconds between two looks at a claim being waited for."""
 CLAIM_SUFFIX = ".pverosion-compiling"
 _allowed = False  # within helpers_allowed()
-_helper: subprocess.Popen | None = None  # the helper this process started, while it runs
+_helper: subprocess.Popen | None = None  # the helper this process started, until stop_helper
 _waits = False  # shared_compilation waits for kernels another process has claimed
 _holding: set[Path] = set()  # the claims this process holds
 
@@ -196,7 +196,10 @@ def _claimant_alive(claim: Path) -> bool | None:
         return False
     if not text.strip():
         return True  # just created, the number not written yet
-    pid = int(text)
+    try:
+        pid = int(text)
+    except ValueError:
+        return False  # not a claim this module wrote
     if _helper is not None and pid == _helper.pid:
         return _helper.poll() is None  # an ended child is a zombie until polled: os.kill would still find it
     try:
