@@ -8,6 +8,7 @@ import pverosion.examples
 from pverosion.examples import load_cube, load_hand
 from pverosion.filters import Weathering
 from pverosion.kernels.exact.intersection import intersecting_faces
+from pverosion.kernels.mesh.remesh import CollapseTopology
 from pverosion.kernels.mesh.topology import edge_topology
 from pverosion.kernels.weathering.model import WeatheringSolver
 
@@ -282,30 +283,54 @@ def test_open_scan_erodes_like_the_closed_model():
 
 
 def test_guard_query_after_a_collapse_holds_every_new_intersection():
-    """After an edge collapse the guard checks only faces that are not faces of the restart point; a vertex
-    then pushed through the far side is still found, exactly as by a check of the whole mesh."""
+    """After edge collapses the guard checks only the faces that are not faces of the restart point; a vertex
+    then pushed through the far side is still found, exactly as by a check of the whole mesh, and a rollback
+    leaves nothing to check."""
     from conftest import icosphere
-
-    from pverosion.kernels.solver.mesh_evolution import _new_faces
 
     sphere = icosphere(1.0, 3)
     points, faces = np.asarray(sphere.points, dtype=np.float64), sphere.regular_faces.astype(np.int64)
-    ids = np.arange(len(points))
-    a, b = faces[0, 0], faces[0, 1]  # collapse b into a: its faces go, the rest follow a
-    merged = np.where(faces == b, a, faces)
-    merged = merged[(merged[:, 0] != merged[:, 1]) & (merged[:, 1] != merged[:, 2]) & (merged[:, 0] != merged[:, 2])]
-    kept = np.delete(np.arange(len(points)), b)
-    remap = np.full(len(points), -1)
-    remap[kept] = np.arange(len(kept))
-    new_points, new_faces, new_ids = points[kept].copy(), remap[merged], ids[kept]
-    query = _new_faces(points, faces, ids, new_points, new_faces, new_ids)
-    assert query is not None and 0 < query.sum() < len(new_faces) // 4  # the collapsed fan only
-    assert not intersecting_faces(new_points, new_faces, query=query).any()
-    far = int(np.argmax(new_points @ new_points[remap[a]] * -1))  # a vertex on the far side, pushed through
-    new_points[far] *= -1.5
-    query = _new_faces(points, faces, ids, new_points, new_faces, new_ids)
-    hits = intersecting_faces(new_points, new_faces)
+    for a, b in faces[[0, 200, 400], :2]:  # three short edges for the improvement to collapse
+        points[b] = points[a] + 0.02 * (points[b] - points[a])
+    solver = WeatheringSolver(points, faces)
+    assert not solver._moved_faces().any()
+    solver._improve(0.05)
+    assert solver.collapses == 3
+    query = solver._moved_faces()
+    assert 0 < query.sum() < len(solver.faces) // 4  # the collapsed fans only
+    assert not intersecting_faces(solver.points, solver.faces, query=query).any()
+    rebuilt = CollapseTopology.build(solver.faces, len(solver.points))
+    assert np.array_equal(solver._edges, rebuilt.edges) and np.array_equal(solver._ring[1], rebuilt.ring[1])
+    merged = solver.points[np.any(solver.points != points[solver.ids], axis=1)][0]
+    far = int(np.argmin(solver.points @ merged))  # a vertex on the far side, pushed through
+    solver.points = solver.points.copy()
+    solver.points[far] *= -1.5
+    hits = intersecting_faces(solver.points, solver.faces)
     assert hits.any()
-    assert np.array_equal(intersecting_faces(new_points, new_faces, query=query), hits)
-    # repeated ids (vertices made by a repair) leave the whole mesh to check
-    assert _new_faces(points, faces, ids, new_points, new_faces, np.zeros_like(new_ids)) is None
+    assert np.array_equal(intersecting_faces(solver.points, solver.faces, query=solver._moved_faces()), hits)
+    assert not solver._accept()  # rolled back to the restart point
+    assert len(solver.faces) == len(faces) and not solver._moved_faces().any()
+
+
+def test_guard_queries_and_kept_connectivity_match_whole_rebuilds_over_a_run(bunny):
+    """Over a run of the scan with edge collapses and rollbacks, every guard check of the queried faces finds
+    exactly what a check of the whole mesh finds, and the connectivity carried through the collapses equals
+    one rebuilt from the faces."""
+
+    class Checked(WeatheringSolver):
+        checks = 0
+
+        def _intersections(self, query=None):
+            hits = super()._intersections(query)
+            if query is not None:
+                assert np.array_equal(hits, intersecting_faces(self.points, self.faces))
+                self.checks += 1
+            rebuilt = CollapseTopology.build(self.faces, len(self.points))
+            for mine, theirs in zip((self._edges, self._usable, self._fixed, *self._ring),
+                                    (rebuilt.edges, rebuilt.usable, rebuilt.fixed, *rebuilt.ring)):
+                assert np.array_equal(mine, theirs)
+            return hits
+
+    solver = Checked(bunny.points, bunny.regular_faces, min_edge_ratio=0.25)
+    solver.run(60)
+    assert solver.collapses > 0 and solver.retries > 0 and solver.checks >= 6

@@ -228,17 +228,22 @@ def _grid_frame(lo, ok, side):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _key_range(lo, ok, origin, h, keys, start, stop):
-    """Morton keys of the lowest grid cells of the boxes of faces ``start`` to ``stop``."""
+def _key_range(lo, hi, ok, origin, h, inv_h, keys, cell, start, stop):
+    """Morton keys of the lowest grid cells of the boxes of faces ``start`` to ``stop``, and the ranges of grid
+    cells the boxes cover (lowest x, y, z, then highest)."""
     for f in range(start, stop):
         if ok[f]:
             keys[f] = _morton(
                 int((lo[f, 0] - origin[0]) / h), int((lo[f, 1] - origin[1]) / h), int((lo[f, 2] - origin[2]) / h)
             )
+            for d in range(3):
+                cell[f, d] = int((lo[f, d] - origin[d]) * inv_h)
+                cell[f, 3 + d] = int((hi[f, d] - origin[d]) * inv_h)
 
 
 def _face_boxes(points: np.ndarray, faces: np.ndarray) -> tuple:
-    """Boxes of the non-degenerate faces, the grid cell edge, origin and Morton keys."""
+    """Boxes of the faces (F, 3) twice, whether they are non-degenerate (F,), Morton keys (F,), the number of
+    non-degenerate faces and the range of grid cells every box covers (F, 6) (set for non-degenerate faces)."""
     n = faces.shape[0]
     lo = np.empty((n, 3))
     hi = np.empty((n, 3))
@@ -247,31 +252,21 @@ def _face_boxes(points: np.ndarray, faces: np.ndarray) -> tuple:
     for_ranges(_box_range, n, points, faces, lo, hi, ok, side)
     origin, h, n_ok = _grid_frame(lo, ok, side)
     keys = np.zeros(n, np.int64)
-    for_ranges(_key_range, n, lo, ok, origin, h, keys)
-    return lo, hi, ok, origin, 1.0 / h, keys, n_ok
+    cell = np.zeros((n, 6), np.int64)
+    for_ranges(_key_range, n, lo, hi, ok, origin, h, 1.0 / h, keys, cell)
+    return lo, hi, ok, keys, n_ok, cell
 
 
 @njit(cache=True, error_model="numpy")
-def _cell_range(lo, hi, f, origin, inv_h):
-    return (
-        int((lo[f, 0] - origin[0]) * inv_h),
-        int((lo[f, 1] - origin[1]) * inv_h),
-        int((lo[f, 2] - origin[2]) * inv_h),
-        int((hi[f, 0] - origin[0]) * inv_h),
-        int((hi[f, 1] - origin[1]) * inv_h),
-        int((hi[f, 2] - origin[2]) * inv_h),
-    )
-
-
-@njit(cache=True, error_model="numpy")
-def _build_grid(lo, hi, ok, origin, inv_h, size):
-    """Spatial hash: the faces covering each bucket's cells, with each entry's packed cell key."""
-    n = lo.shape[0]
+def _build_grid(cell, ok, size):
+    """Spatial hash: the faces covering each bucket's cells (ranges ``cell`` (F, 6)), with each entry's packed cell
+    key."""
+    n = cell.shape[0]
     start = np.zeros(size + 1, np.int64)
     for f in range(n):
         if not ok[f]:
             continue
-        x0, y0, z0, x1, y1, z1 = _cell_range(lo, hi, f, origin, inv_h)
+        x0, y0, z0, x1, y1, z1 = cell[f, 0], cell[f, 1], cell[f, 2], cell[f, 3], cell[f, 4], cell[f, 5]
         for ix in range(x0, x1 + 1):
             for iy in range(y0, y1 + 1):
                 for iz in range(z0, z1 + 1):
@@ -284,7 +279,7 @@ def _build_grid(lo, hi, ok, origin, inv_h, size):
     for f in range(n):
         if not ok[f]:
             continue
-        x0, y0, z0, x1, y1, z1 = _cell_range(lo, hi, f, origin, inv_h)
+        x0, y0, z0, x1, y1, z1 = cell[f, 0], cell[f, 1], cell[f, 2], cell[f, 3], cell[f, 4], cell[f, 5]
         for ix in range(x0, x1 + 1):
             for iy in range(y0, y1 + 1):
                 for iz in range(z0, z1 + 1):
@@ -293,15 +288,6 @@ def _build_grid(lo, hi, ok, origin, inv_h, size):
                     cells[fill[b]] = _key(ix, iy, iz)
                     fill[b] += 1
     return start, entries, cells
-
-
-@njit(cache=True, error_model="numpy")
-def _share_vertex(faces, f, g):
-    for a in range(3):
-        for b in range(3):
-            if faces[f, a] == faces[g, b]:
-                return True
-    return False
 
 
 @njit(cache=True, error_model="numpy")
@@ -314,63 +300,51 @@ def _shared_vertices(faces, f, g):
     return n
 
 
-@njit(cache=True, error_model="numpy")
-def _pair_hits(points, faces, lo, hi, f, g):
-    """Test pair (f, g): boxes, adjacency, then the triangles."""
-    for d in range(3):
-        if lo[f, d] > hi[g, d] or lo[g, d] > hi[f, d]:
-            return False
-    if _share_vertex(faces, f, g):
-        return False
-    return tri_tri(
-        v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2]),
-        v3.row(points, faces[g, 0]), v3.row(points, faces[g, 1]), v3.row(points, faces[g, 2]),
-    )
-
-
 @njit(cache=True, error_model="numpy", nogil=True)
-def _hits_range(points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells, size, hits, first, last):
-    """Flag in ``hits`` the faces that meet a non-adjacent face, testing the pairs of queried faces ``first`` to
-    ``last`` once (both faces of a hit are flagged; another range may flag the same face, with the same value)."""
-    for f in range(first, last):
-        if not (ok[f] and query[f]):
-            continue
-        fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
-        for ix in range(fx0, fx1 + 1):
-            for iy in range(fy0, fy1 + 1):
-                for iz in range(fz0, fz1 + 1):
-                    b = _hash(ix, iy, iz, size)
-                    key = _key(ix, iy, iz)
-                    for e in range(start[b], start[b + 1]):
-                        g = entries[e]
-                        if cells[e] != key or g == f or (g < f and query[g]):
-                            continue  # another cell hashed here, f itself, or a pair seen from g
-                        # visit the pair only in the first cell both boxes cover
-                        if (
-                            max(fx0, int((lo[g, 0] - origin[0]) * inv_h)) != ix
-                            or max(fy0, int((lo[g, 1] - origin[1]) * inv_h)) != iy
-                            or max(fz0, int((lo[g, 2] - origin[2]) * inv_h)) != iz
-                        ):
-                            continue
-                        if _pair_hits(points, faces, lo, hi, f, g):
-                            hits[f] = True
-                            hits[g] = True  # same value from any thread: a benign race
+def _hits_range(points, faces, lo, hi, query, low, start, entries, cells, hits, first, last):
+    """Flag in ``hits`` the faces that meet a non-adjacent face, testing the pairs with a queried face in the
+    cells of buckets ``first`` to ``last``, each pair in the first cell both boxes cover (lowest cell of every
+    face: ``low[:, :3]``); both faces of a hit are flagged, another range may flag the same face, with the
+    same value."""
+    mask = (1 << 21) - 1
+    for b in range(first, last):
+        for i in range(start[b], start[b + 1] - 1):
+            f = entries[i]
+            key = cells[i]
+            ix, iy, iz = key >> 42, (key >> 21) & mask, key & mask
+            f_low = (low[f, 0], low[f, 1], low[f, 2])
+            f_lo = (lo[f, 0], lo[f, 1], lo[f, 2])
+            f_hi = (hi[f, 0], hi[f, 1], hi[f, 2])
+            a, b_, c = faces[f, 0], faces[f, 1], faces[f, 2]
+            f_queried = query[f]
+            for j in range(i + 1, start[b + 1]):
+                if cells[j] != key:
+                    continue  # another cell hashed here
+                g = entries[j]
+                if not (f_queried or query[g]):
+                    continue
+                if max(f_low[0], low[g, 0]) != ix or max(f_low[1], low[g, 1]) != iy or max(f_low[2], low[g, 2]) != iz:
+                    continue  # the pair meets in an earlier cell
+                if (f_lo[0] > hi[g, 0] or lo[g, 0] > f_hi[0] or f_lo[1] > hi[g, 1] or lo[g, 1] > f_hi[1]
+                        or f_lo[2] > hi[g, 2] or lo[g, 2] > f_hi[2]):
+                    continue  # boxes apart
+                u, v, w = faces[g, 0], faces[g, 1], faces[g, 2]
+                if a == u or a == v or a == w or b_ == u or b_ == v or b_ == w or c == u or c == v or c == w:
+                    continue  # adjacent
+                if tri_tri(v3.row(points, a), v3.row(points, b_), v3.row(points, c),
+                           v3.row(points, u), v3.row(points, v), v3.row(points, w)):
+                    hits[f] = True
+                    hits[g] = True  # same value from any thread: a benign race
 
 
-def _count_hits(points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells, size) -> np.ndarray:
-    """Flag the faces that meet a non-adjacent face, testing the pairs with a queried face once."""
+def _count_hits(points, faces, lo, hi, ok, query, cell, start, entries, cells, size) -> np.ndarray:
+    """Flag the faces that meet a non-adjacent face, testing the pairs with a queried face once (per cell of
+    the grid, so each pair of faces in a cell is met once rather than from both faces); ``cell`` (F, 6): the
+    grid cells every box covers, the lowest first."""
     hits = np.zeros(faces.shape[0], np.bool_)
-    for_ranges(_hits_range, faces.shape[0], points, faces, lo, hi, ok, query, origin, inv_h, start, entries, cells,
-               size, hits, min_items=HEAVY_ITEMS_PER_RANGE)
+    for_ranges(_hits_range, size, points, faces, lo, hi, query & ok, cell, start, entries, cells, hits,
+               min_items=HEAVY_ITEMS_PER_RANGE)
     return hits
-
-
-@njit(cache=True, error_model="numpy")
-def _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
-    """Whether cell (ix, iy, iz) is the lowest cell that the boxes of f and g both cover."""
-    fx0, fy0, fz0, _, _, _ = _cell_range(lo, hi, f, origin, inv_h)
-    gx0, gy0, gz0, _, _, _ = _cell_range(lo, hi, g, origin, inv_h)
-    return max(fx0, gx0) == ix and max(fy0, gy0) == iy and max(fz0, gz0) == iz
 
 
 @njit(cache=True, error_model="numpy")
@@ -444,7 +418,7 @@ def _apart_by_a_plane(points, faces, f, g, shared):
 
 
 @njit(cache=True, error_model="numpy")
-def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size, f,
+def _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, f,
                     out, n_out):
     """Faces g whose boxes meet f's box, that share no edge with f, (with groups) are in another group, and
     that neither lies strictly on one side of the other's plane nor of a plane of :func:`_apart_by_a_plane`
@@ -452,7 +426,7 @@ def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, 
     query any g not queried before f. Written to ``out`` as (min, max) from ``n_out`` on when it is large
     enough. Returns the count."""
     grouped = group.shape[0] > 0
-    fx0, fy0, fz0, fx1, fy1, fz1 = _cell_range(lo, hi, f, origin, inv_h)
+    fx0, fy0, fz0, fx1, fy1, fz1 = cell[f, 0], cell[f, 1], cell[f, 2], cell[f, 3], cell[f, 4], cell[f, 5]
     for ix in range(fx0, fx1 + 1):
         for iy in range(fy0, fy1 + 1):
             for iz in range(fz0, fz1 + 1):
@@ -465,14 +439,14 @@ def _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, 
                         continue
                     if cells[e] != key or (grouped and group[f] == group[g]):
                         continue
-                    if not _first_shared_cell(lo, hi, origin, inv_h, f, g, ix, iy, iz):
+                    # visit the pair only in the first cell both boxes cover
+                    if max(fx0, cell[g, 0]) != ix or max(fy0, cell[g, 1]) != iy or max(fz0, cell[g, 2]) != iz:
                         continue
-                    overlap = True
-                    for d in range(3):
-                        if lo[f, d] > hi[g, d] or lo[g, d] > hi[f, d]:
-                            overlap = False
+                    if (lo[f, 0] > hi[g, 0] or lo[g, 0] > hi[f, 0] or lo[f, 1] > hi[g, 1] or lo[g, 1] > hi[f, 1]
+                            or lo[f, 2] > hi[g, 2] or lo[g, 2] > hi[f, 2]):
+                        continue
                     shared = _shared_vertices(faces, f, g)
-                    if not overlap or shared > 1:
+                    if shared > 1:
                         continue
                     # faces that share a vertex meet beyond it only when neither has its other two vertices on
                     # one side of the other's plane
@@ -542,53 +516,62 @@ def _nearly_one_plane(planes, f, g):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _pair_count_range(points, faces, planes, lo, hi, ok, group, query, origin, inv_h, start, entries, cells, size,
-                      count, first, last):
-    """``count[f + 1]``: the number of pairs of face f, for faces ``first`` to ``last``."""
-    none = np.empty((0, 2), np.int64)
-    for f in range(first, last):
-        if ok[f] and (query.shape[0] == 0 or query[f]):
-            count[f + 1] = _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start,
-                                           entries, cells, size, f, none, np.int64(0))
+def _pair_range(points, faces, planes, lo, hi, todo, group, query, cell, start, entries, cells, size, first, last):
+    """The pairs of faces ``todo[first:last]`` (K, 2), face by face, in one pass: a face whose pairs overflow the
+    buffer is searched again after the buffer has grown."""
+    out = np.empty((max(16, (last - first) // 4), 2), np.int64)
+    n = np.int64(0)
+    for i in range(first, last):
+        f = todo[i]
+        m = _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, f, out, n)
+        if m > out.shape[0]:
+            grown = np.empty((max(2 * out.shape[0], m), 2), np.int64)
+            grown[:n] = out[:n]
+            out = grown
+            m = _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, f,
+                                out, n)
+        n = m
+    return out[:n]
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
-def _pair_fill_range(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size, count,
-                     out, first, last):
-    """The pairs of faces ``first`` to ``last``, at rows ``count[f]`` to ``count[f + 1]`` of ``out``."""
-    for f in range(first, last):
-        if count[f + 1] > count[f]:
-            rows = out[count[f]:count[f + 1]]
-            _face_box_pairs(points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells, size,
-                            f, rows, np.int64(0))
-
-
-def _box_pairs(points, faces, planes, lo, hi, ok, group, query, origin, inv_h, start, entries, cells,
-               size) -> np.ndarray:
+def _box_pairs(points, faces, planes, lo, hi, ok, group, query, cell, start, entries, cells, size) -> np.ndarray:
     """All face pairs (f < g) of :func:`candidate_pairs`, grouped by the queried face (by f without a query):
     (K, 2)."""
-    n = faces.shape[0]
-    count = np.zeros(n + 1, np.int64)
-    for_ranges(_pair_count_range, n, points, faces, planes, lo, hi, ok, group, query, origin, inv_h, start, entries,
-               cells, size, count, min_items=HEAVY_ITEMS_PER_RANGE)
-    np.cumsum(count, out=count)
-    out = np.empty((count[n], 2), np.int64)
-    for_ranges(_pair_fill_range, n, points, faces, planes, lo, hi, group, query, origin, inv_h, start, entries, cells,
-               size, count, out, min_items=HEAVY_ITEMS_PER_RANGE)
-    return out
+    parts = {}
+
+    def part(*args):
+        parts[args[-2]] = _pair_range(*args)
+
+    # the usable (queried) faces, ascending, split evenly between the threads
+    todo = np.flatnonzero(ok if query.shape[0] == 0 else ok & query)
+    for_ranges(part, len(todo), points, faces, planes, lo, hi, todo, group, query, cell, start, entries, cells,
+               size, min_items=HEAVY_ITEMS_PER_RANGE)
+    return parts[0] if len(parts) == 1 else np.concatenate([parts[first] for first in sorted(parts)])
 
 
-def _near_query(lo: np.ndarray, hi: np.ndarray, ok: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, int]:
+@njit(cache=True, error_model="numpy")
+def _near_query(lo, hi, ok, query):
     """``ok`` (F,) narrowed to the faces whose boxes (``lo``, ``hi`` (F, 3)) meet the box around the queried
     usable faces (only they can meet a queried face), and its count; none when no usable face is queried."""
-    queried = query & ok
-    if not queried.any():
-        return np.zeros_like(ok), 0
-    top, bottom = hi[queried].max(axis=0), lo[queried].min(axis=0)
-    near = ok.copy()
-    for d in range(3):  # column by column: np.all over rows of three is slow
-        near &= (lo[:, d] <= top[d]) & (hi[:, d] >= bottom[d])
-    return near, int(np.count_nonzero(near))
+    top = np.full(3, -np.inf)
+    bottom = np.full(3, np.inf)
+    queried = False
+    for f in range(ok.shape[0]):
+        if ok[f] and query[f]:
+            queried = True
+            for d in range(3):
+                top[d] = max(top[d], hi[f, d])
+                bottom[d] = min(bottom[d], lo[f, d])
+    near = np.zeros(ok.shape[0], np.bool_)
+    n = 0
+    if not queried:
+        return near, n
+    for f in range(ok.shape[0]):
+        if (ok[f] and lo[f, 0] <= top[0] and hi[f, 0] >= bottom[0] and lo[f, 1] <= top[1] and hi[f, 1] >= bottom[1]
+                and lo[f, 2] <= top[2] and hi[f, 2] >= bottom[2]):
+            near[f] = True
+            n += 1
+    return near, n
 
 
 def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
@@ -626,14 +609,14 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     wanted = np.zeros(0, bool) if query is None else np.asarray(query, dtype=bool)
     if query is not None and wanted.shape != (len(fcs),):
         raise ValueError(f"query must have shape ({len(fcs)},); got {wanted.shape}")
-    lo, hi, ok, origin, inv_h, _, n_ok = _face_boxes(pts, fcs)
+    lo, hi, ok, _, n_ok, cell = _face_boxes(pts, fcs)
     if query is not None and n_ok:
         ok, n_ok = _near_query(lo, hi, ok, wanted)
     if n_ok == 0:
         return np.zeros((0, 2), np.int64)
     size = 4 * n_ok + 1
-    start, entries, cells = _build_grid(lo, hi, ok, origin, inv_h, size)
-    return _box_pairs(pts, fcs, _face_planes(pts, fcs), lo, hi, ok, grp, wanted, origin, inv_h, start, entries,
+    start, entries, cells = _build_grid(cell, ok, size)
+    return _box_pairs(pts, fcs, _face_planes(pts, fcs), lo, hi, ok, grp, wanted, cell, start, entries,
                       cells, size)
 
 
@@ -654,7 +637,7 @@ def spatial_order(points, faces) -> np.ndarray:
     numpy.ndarray, shape (F,), int64
     """
     pts, fcs = as_triangle_mesh(points, faces)
-    return np.argsort(_face_boxes(pts, fcs)[5], kind="stable")
+    return np.argsort(_face_boxes(pts, fcs)[3], kind="stable")
 
 
 def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
@@ -688,7 +671,7 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
         raise ValueError(f"order must have shape ({len(fcs)},); got {order.shape}")
     # visit the faces in Morton order, so neighbours in space are near in memory
     local = fcs[order]
-    lo, hi, ok, origin, inv_h, _, n_ok = _face_boxes(pts, local)
+    lo, hi, ok, _, n_ok, cell = _face_boxes(pts, local)
     hits = np.zeros(len(fcs), bool)
     local_query = q[order]
     if query is not None and n_ok:  # the grid holds few faces when the query is local (vertices moved in one place)
@@ -696,8 +679,8 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
     if n_ok == 0:
         return hits
     size = 4 * n_ok + 1
-    grid = _build_grid(lo, hi, ok, origin, inv_h, size)
-    hits[order] = _count_hits(pts, local, lo, hi, ok, local_query, origin, inv_h, *grid, size)
+    grid = _build_grid(cell, ok, size)
+    hits[order] = _count_hits(pts, local, lo, hi, ok, local_query, cell, *grid, size)
     return hits
 
 

@@ -858,6 +858,9 @@ def _one_name_per_point(pts, fcs, canon, plane, keys, pairs, locs):
                    & (end_locs[:, 0] < _INSIDE) & (end_locs[:, 1] < _INSIDE)
                    & ~_in_one_plane(plane, end_faces))
     rows = np.flatnonzero(transversal)
+    if len(rows) == 0:  # no edge crosses another edge: every point has one name
+        unique, inverse = unique_rows(keys)
+        return unique, inverse.reshape(-1, 2)
     n_vertices = len(pts)
     named, aliases = [], []
     for side in range(2):  # the edge of face ``side`` crossing the plane of the other face (not lying in it)

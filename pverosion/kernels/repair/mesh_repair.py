@@ -90,6 +90,9 @@ IMPROVE_EDGE_RATIO = 0.25
 IMPROVE_MAX_ANGLE = 150.0
 """Mesh improvement after a repair: faces with a larger angle (degrees) are caps, flipped or split."""
 
+FEW_RAYS = 16
+"""Winding numbers by at most this many rays test every face instead of building a grid of columns first."""
+
 # the region of every operation, from whether a point is inside A and inside B (each: its winding number >= 1)
 _REGION = {
     None: lambda a: a,
@@ -135,12 +138,16 @@ class RepairResult:
 # --- cutting ---------------------------------------------------------------------------------------------------
 
 
-def _edge_keys(canon: np.ndarray, faces: np.ndarray) -> np.ndarray:
+@njit(cache=True)
+def _edge_keys(canon, faces):
     """Key a * V + b (a < b, canonical vertices) of every face edge k (from corner k to k + 1): (F, 3)."""
-    a = canon[faces]
-    b = np.roll(a, -1, axis=1)
-    n = len(canon)
-    return np.minimum(a, b) * n + np.maximum(a, b)
+    n = canon.shape[0]
+    out = np.empty(faces.shape, np.int64)
+    for f in range(faces.shape[0]):
+        for k in range(3):
+            a, b = canon[faces[f, k]], canon[faces[f, (k + 1) % 3]]
+            out[f, k] = min(a, b) * n + max(a, b)
+    return out
 
 
 @njit(cache=True)
@@ -188,18 +195,39 @@ def _face_points(fcs: np.ndarray, canon: np.ndarray, curves: IntersectionCurves)
     edge of the face (also those a neighbour's segment put there), so that
     no cut leaves a T-junction.
     """
-    face = np.repeat(np.concatenate([curves.pairs[:, 0], curves.pairs[:, 1]]), 2)
-    point = np.concatenate([curves.segments, curves.segments]).ravel()
-    loc = np.concatenate([curves.locations[:, :, 0], curves.locations[:, :, 1]]).ravel()
-    # curve points inside edges go to every face with that edge
+    return unique_rows(_face_point_rows(fcs, canon, curves.pairs, curves.segments, curves.locations))[0]
+
+
+@njit(cache=True)
+def _face_point_rows(fcs, canon, pairs, segments, locations):
+    """The rows of :func:`_face_points`, unsorted and with repeats: (face, point, location) of every segment end
+    on each of its two faces, then of every end inside an edge on every face with that edge."""
+    n_seg = segments.shape[0]
+    own = np.empty((4 * n_seg, 3), np.int64)
+    n_edge = 0
+    for side in range(2):
+        for s in range(n_seg):
+            for e in range(2):
+                r = 2 * n_seg * side + 2 * s + e
+                own[r, 0], own[r, 1], own[r, 2] = pairs[s, side], segments[s, e], locations[s, e, side]
+                if 3 <= locations[s, e, side] < 6:
+                    n_edge += 1
     keys = _edge_keys(canon, fcs)
-    on_edge = (loc >= 3) & (loc < 6)
-    edge_key = keys[face[on_edge], loc[on_edge] - 3]
+    on_edge = np.empty(n_edge, np.int64)  # the own rows inside an edge, and the key of that edge
+    edge_key = np.empty(n_edge, np.int64)
+    n_edge = 0
+    for r in range(own.shape[0]):
+        if 3 <= own[r, 2] < 6:
+            on_edge[n_edge] = r
+            edge_key[n_edge] = keys[own[r, 0], own[r, 2] - 3]
+            n_edge += 1
     rows, slots = _edge_matches(edge_key, keys.ravel())
-    face = np.concatenate([face, slots // 3])
-    point = np.concatenate([point, point[on_edge][rows]])
-    loc = np.concatenate([loc, 3 + slots % 3])
-    return unique_rows(np.stack([face, point, loc], axis=1))[0]
+    out = np.empty((own.shape[0] + rows.shape[0], 3), np.int64)
+    out[:own.shape[0]] = own
+    for i in range(rows.shape[0]):
+        r = own.shape[0] + i
+        out[r, 0], out[r, 1], out[r, 2] = slots[i] // 3, own[on_edge[rows[i]], 1], 3 + slots[i] % 3
+    return out
 
 
 def _cut_faces(pts, fcs, canon, curves):
@@ -209,63 +237,114 @@ def _cut_faces(pts, fcs, canon, curves):
     keys = curves.point_keys
     point_id = np.where(keys[:, 0] == VERTEX, keys[:, 1], n_vertices + np.arange(len(keys)))
     table = _face_points(fcs, canon, curves)
-    cut, first_row = np.unique(table[:, 0], return_index=True)
+    # the table is sorted by face: the first row of every face is where the face changes
+    first_row = np.flatnonzero(np.r_[True, table[1:, 0] != table[:-1, 0]]) if len(table) else np.zeros(0, np.int64)
+    cut = table[first_row, 0]
     whole = np.ones(len(fcs), bool)
     whole[cut] = False
     kept = np.flatnonzero(whole)
     if len(cut) == 0:
         return canon[fcs[kept]], kept, point_id
-    # local points of every cut face: its 3 corners, then its curve points that are not corners
-    row_face = np.searchsorted(cut, table[:, 0])  # index of each row's face in ``cut``
-    other = table[:, 2] >= 3
-    n_other = np.bincount(row_face[other], minlength=len(cut))
-    point_start = np.zeros(len(cut) + 1, np.int64)
-    np.cumsum(3 + n_other, out=point_start[1:])
-    before = np.cumsum(other) - other  # other rows before each row
-    local = np.where(other, 3 + before - before[first_row][row_face], table[:, 2])  # each row's point on its face
-    tri = pts[fcs[cut]]  # (C, 3, 3)
-    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    axis = np.argmax(np.abs(normal), axis=1)
-    flip = normal[np.arange(len(cut)), axis] < 0.0
-    cols = np.stack([(axis + 1) % 3, (axis + 2) % 3], axis=1)
-    cols[flip] = cols[flip][:, ::-1]
-    xyz = np.empty((point_start[-1], 3))
-    corner_rows = (point_start[:-1, None] + np.arange(3)).ravel()
-    xyz[corner_rows] = tri.reshape(-1, 3)
-    other_rows = point_start[row_face[other]] + local[other]
-    xyz[other_rows] = curves.points[table[other, 1]]
-    row_owner = np.repeat(np.arange(len(cut)), 3 + n_other)
-    xy = np.take_along_axis(xyz, cols[row_owner], axis=1)
-    location = np.empty(point_start[-1], np.int64)
-    location[corner_rows] = np.tile([0, 1, 2], len(cut))
-    location[other_rows] = table[other, 2]
-    param = np.zeros(point_start[-1])
-    edge = other & (table[:, 2] < 6)
-    k = table[edge, 2] - 3
-    owner = row_face[edge]
-    a, b = tri[owner, k], tri[owner, (k + 1) % 3]
-    param[point_start[owner] + local[edge]] = (np.einsum("ij,ij->i", curves.points[table[edge, 1]] - a, b - a)
-                                               / np.einsum("ij,ij->i", b - a, b - a))
-    # segments in local indices: look every end up as (face, point) in the table
-    seg_face = np.concatenate([curves.pairs[:, 0], curves.pairs[:, 1]])
-    seg_points = np.concatenate([curves.segments, curves.segments])
-    order = np.argsort(seg_face, kind="stable")
-    seg_face, seg_points = seg_face[order], seg_points[order]
-    n_points = len(curves.points)
-    row_key = table[:, 0] * n_points + table[:, 1]  # sorted: the table is sorted by face, then point
-    ends = np.searchsorted(row_key, seg_face[:, None] * n_points + seg_points)
-    segments = local[ends]
-    seg_start = np.searchsorted(seg_face, np.r_[cut, np.iinfo(np.int64).max])
+    xy, location, param, point_start, ids, segments, seg_start = _cut_input(
+        pts, fcs, canon, table, cut, np.r_[first_row, len(table)], curves.points, point_id, curves.pairs,
+        curves.segments)
     triangles, _, tri_start = cut_triangles(xy, location, param, point_start, segments, seg_start)
     counts = np.diff(tri_start)
     if np.any(counts == 0):
         raise RepairError(f"face {cut[np.argmax(counts == 0)]} could not be cut along its intersection segments")
-    ids = np.empty(point_start[-1], np.int64)
-    ids[corner_rows] = canon[fcs[cut]].ravel()
-    ids[other_rows] = point_id[table[other, 1]]
     tri_owner = np.repeat(np.arange(len(cut)), counts)
     pieces = ids[point_start[tri_owner][:, None] + triangles]
     return (np.concatenate([canon[fcs[kept]], pieces]), np.concatenate([kept, cut[tri_owner]]), point_id)
+
+
+@njit(cache=True)
+def _cut_input(pts, fcs, canon, table, cut, row_start, curve_points, point_id, pairs, segments):
+    """The input of :func:`cut_triangles` for the faces ``cut`` (C,) from the rows (face, curve point, location)
+    of :func:`_face_points` (``table`` (R, 3), the rows of ``cut[c]`` from ``row_start[c]`` on): every face's
+    local points (its 3 corners, then its curve points that are not corners, in table order) projected along the
+    axis its normal points most along (turned so that the face runs counterclockwise), their locations, their
+    parameters along their edges, the CSR offsets (C + 1,), the output vertex id of every local point, and the
+    faces' segments in local points with their CSR offsets (C + 1,) (a segment once for each of its two faces, in
+    the order of ``pairs``' first column, then its second)."""
+    n_cut = cut.shape[0]
+    point_start = np.zeros(n_cut + 1, np.int64)
+    for c in range(n_cut):
+        n_other = 0
+        for r in range(row_start[c], row_start[c + 1]):
+            if table[r, 2] >= 3:
+                n_other += 1
+        point_start[c + 1] = point_start[c] + 3 + n_other
+    n = point_start[n_cut]
+    xy = np.empty((n, 2))
+    location = np.empty(n, np.int64)
+    param = np.zeros(n)
+    ids = np.empty(n, np.int64)
+    local = np.empty(table.shape[0], np.int64)  # every row's point on its face
+    for c in range(n_cut):
+        f, at = cut[c], point_start[c]
+        p0, p1, p2 = pts[fcs[f, 0]], pts[fcs[f, 1]], pts[fcs[f, 2]]
+        ux, uy, uz = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
+        wx, wy, wz = p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]
+        normal = (uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx)
+        axis = 0 if abs(normal[0]) >= abs(normal[1]) and abs(normal[0]) >= abs(normal[2]) else (
+            1 if abs(normal[1]) >= abs(normal[2]) else 2)
+        i, j = (axis + 1) % 3, (axis + 2) % 3
+        if normal[axis] < 0.0:
+            i, j = j, i
+        for k in range(3):
+            corner = pts[fcs[f, k]]
+            xy[at + k, 0], xy[at + k, 1] = corner[i], corner[j]
+            location[at + k] = k
+            ids[at + k] = canon[fcs[f, k]]
+        m = at + 3
+        for r in range(row_start[c], row_start[c + 1]):
+            loc = table[r, 2]
+            if loc < 3:
+                local[r] = loc
+                continue
+            local[r] = m - at
+            q = curve_points[table[r, 1]]
+            xy[m, 0], xy[m, 1] = q[i], q[j]
+            location[m] = loc
+            ids[m] = point_id[table[r, 1]]
+            if loc < 6:
+                a, b = pts[fcs[f, loc - 3]], pts[fcs[f, (loc - 2) % 3]]
+                ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+                param[m] = ((q[0] - a[0]) * ex + (q[1] - a[1]) * ey + (q[2] - a[2]) * ez) / (ex * ex + ey * ey
+                                                                                            + ez * ez)
+            m += 1
+    local_segments, seg_start = _local_segments(fcs.shape[0], table, cut, row_start, local, pairs, segments)
+    return xy, location, param, point_start, ids, local_segments, seg_start
+
+
+@njit(cache=True)
+def _local_segments(n_faces, table, cut, row_start, local, pairs, segments):
+    """The segments of every cut face in its local points, and their CSR offsets (see :func:`_cut_input`)."""
+    slot = np.full(n_faces, -1, np.int64)
+    for c in range(cut.shape[0]):
+        slot[cut[c]] = c
+    seg_start = np.zeros(cut.shape[0] + 1, np.int64)
+    for side in range(2):
+        for s in range(pairs.shape[0]):
+            seg_start[slot[pairs[s, side]] + 1] += 1
+    for c in range(cut.shape[0]):
+        seg_start[c + 1] += seg_start[c]
+    fill = seg_start[:-1].copy()
+    out = np.empty((2 * pairs.shape[0], 2), np.int64)
+    for side in range(2):
+        for s in range(pairs.shape[0]):
+            c = slot[pairs[s, side]]
+            for e in range(2):  # the row of (face, point): rows of a face are sorted by point
+                lo, hi = row_start[c], row_start[c + 1]
+                while lo < hi:
+                    mid = (lo + hi) // 2
+                    if table[mid, 1] < segments[s, e]:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                out[fill[c], e] = local[lo]
+            fill[c] += 1
+    return out, seg_start
 
 
 # --- patches and their winding numbers ---------------------------------------------------------------------------
@@ -364,23 +443,77 @@ def _columns(points, faces):
     return lo, size, dims, start, items
 
 
+def _ray_columns(points, faces, n_rays):
+    """:func:`_columns`, or for at most :data:`FEW_RAYS` rays a single column holding every face (building the grid
+    costs more than crossing-testing every face; the winding numbers are the same)."""
+    if n_rays > FEW_RAYS:
+        return _columns(points, faces)
+    lo = _box(points)[0] if len(points) else np.zeros(3)
+    return (lo, np.inf, np.ones(3, np.int64), np.array([0, len(faces)], np.int64),
+            np.arange(len(faces), dtype=np.int64))
+
+
 def _patch_windings(points, faces, face_group, reps, groups) -> tuple[np.ndarray, np.ndarray]:
     """Winding numbers of the faces of ``groups`` (< 0: all) at the centroids of the faces ``reps``, leaving
     those faces out, by rays along the axis their normals point most along (z where they are not vertical),
     and whether each rep faces down that axis."""
+    if len(reps) <= FEW_RAYS:
+        return _few_windings(points, faces, face_group, reps, groups)
     tri = points[faces[reps]]
-    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normal = _cross_rows(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     axis = np.where(normal[:, 2] != 0.0, 2, np.argmax(np.abs(normal), axis=1))
     centre = tri.mean(axis=1)
     out = np.zeros(len(reps), np.int64)
     for a in np.unique(axis):
         perm = [(a + 1) % 3, (a + 2) % 3, a]  # cyclic: the faces keep their orientation
         turned = np.ascontiguousarray(points[:, perm])
-        lo, size, dims, start, items = _columns(turned, faces)
         rows = np.flatnonzero(axis == a)
+        lo, size, dims, start, items = _ray_columns(turned, faces, len(rows))
         out[rows] = _ray_windings(np.ascontiguousarray(centre[rows][:, perm]), reps[rows], groups[rows], turned,
                                   faces, lo, size, dims, start, items, face_group)
     return out, normal[np.arange(len(reps)), axis] < 0.0
+
+
+@njit(cache=True)
+def _few_windings(points, faces, face_group, reps, groups):
+    """:func:`_patch_windings` by testing every face (for a few rays): the same normals, centroids and rays."""
+    n_reps = reps.shape[0]
+    out = np.zeros(n_reps, np.int64)
+    down = np.zeros(n_reps, np.bool_)
+    axis = np.empty(n_reps, np.int64)
+    centre = np.empty((n_reps, 3))
+    for r in range(n_reps):
+        p0, p1, p2 = points[faces[reps[r], 0]], points[faces[reps[r], 1]], points[faces[reps[r], 2]]
+        ux, uy, uz = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
+        wx, wy, wz = p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]
+        normal = (uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx)
+        a = 2
+        if normal[2] == 0.0:  # the first largest, as numpy's argmax
+            a = 1 if abs(normal[1]) > abs(normal[0]) else 0
+        axis[r] = a
+        down[r] = normal[a] < 0.0
+        for k in range(3):
+            centre[r, k] = (p0[k] + p1[k] + p2[k]) / 3.0
+    dims = np.ones(3, np.int64)
+    column = np.array([0, faces.shape[0]], np.int64)
+    every = np.arange(faces.shape[0])
+    turned = np.empty_like(points)
+    query = np.empty(3)
+    for a in range(3):
+        wanted = False
+        for r in range(n_reps):
+            wanted = wanted or axis[r] == a
+        if not wanted:
+            continue
+        for v in range(points.shape[0]):  # cyclic: the faces keep their orientation
+            turned[v, 0], turned[v, 1], turned[v, 2] = points[v, (a + 1) % 3], points[v, (a + 2) % 3], points[v, a]
+        lo, _ = _box(turned)
+        for r in range(n_reps):
+            if axis[r] == a:
+                query[0], query[1], query[2] = centre[r, (a + 1) % 3], centre[r, (a + 2) % 3], centre[r, a]
+                out[r] = ray_winding(query, turned, faces, lo, np.inf, dims, column, every, reps[r], face_group,
+                                     groups[r])
+    return out, down
 
 
 @njit(cache=True, nogil=True)
@@ -475,8 +608,8 @@ def _coincident_windings(pts, fcs, input_group, overlaps, points, faces, source,
     for a in np.unique(axis):
         perm = [(a + 1) % 3, (a + 2) % 3, a]  # cyclic: the faces keep their orientation
         turned = np.ascontiguousarray(points[:, perm])
-        lo, size, dims, col_start, items = _columns(turned, faces)
         rows = np.flatnonzero(axis == a)
+        lo, size, dims, col_start, items = _ray_columns(turned, faces, n_groups * len(rows))
         queries = np.ascontiguousarray(centre[rows][:, perm])
         in_rows = np.isin(owner, rows)
         sub_start = np.r_[0, np.cumsum(count[rows])]
@@ -611,12 +744,31 @@ def _split_touching(points, faces, twins):
 def _shells(points, faces):
     """Shell (edge-connected part) of every face (F,), and the signed volume and area of every shell."""
     shell = _patches(faces, len(points), np.zeros(0, np.int64), False)
-    tri = points[faces]
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    n = shell.max() + 1 if len(shell) else 0
-    volume = np.bincount(shell, np.einsum("ij,ij->i", tri[:, 0] - points.min(axis=0), cross) / 6.0, minlength=n)
-    area = np.bincount(shell, 0.5 * np.linalg.norm(cross, axis=1), minlength=n)
+    volume, area = _shell_sizes(points, faces, shell)
     return shell, volume, area
+
+
+@njit(cache=True)
+def _shell_sizes(points, faces, shell):
+    """Signed volume and area of every shell (labels ``shell`` (F,), 0..S-1): sums over the faces in order of the
+    volumes of the tetrahedra from the points' lowest corner and of the faces' areas."""
+    n = 0
+    for f in range(shell.shape[0]):  # shell.max() + 1, whose compilation costs more
+        n = max(n, shell[f] + 1)
+    origin = np.full(3, np.inf)
+    for v in range(points.shape[0]):
+        for a in range(3):
+            origin[a] = min(origin[a], points[v, a])
+    volume = np.zeros(n)
+    area = np.zeros(n)
+    for f in range(faces.shape[0]):
+        p0, p1, p2 = points[faces[f, 0]], points[faces[f, 1]], points[faces[f, 2]]
+        ux, uy, uz = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
+        wx, wy, wz = p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]
+        cx, cy, cz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+        volume[shell[f]] += ((p0[0] - origin[0]) * cx + (p0[1] - origin[1]) * cy + (p0[2] - origin[2]) * cz) / 6.0
+        area[shell[f]] += 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
+    return volume, area
 
 
 def mesh_problems(points, faces, *, query=None) -> list[str]:
@@ -648,9 +800,10 @@ def mesh_problems(points, faces, *, query=None) -> list[str]:
     return _problems(pts, fcs, query, None)
 
 
-def _problems(pts, fcs, query, shells, twins=None) -> list[str]:
+def _problems(pts, fcs, query, shells, twins=None, one_fan=False) -> list[str]:
     """:func:`mesh_problems` of a validated mesh, with its :func:`_shells` and :func:`halfedge_twins` when
-    known."""
+    known; ``one_fan``: the faces around every vertex are known to form one fan (:func:`_split_touching` split
+    none of its vertices)."""
     n = len(pts)
     problems = []
     partner, others = halfedge_twins(fcs, n) if twins is None else twins
@@ -667,7 +820,7 @@ def _problems(pts, fcs, query, shells, twins=None) -> list[str]:
             problems.append(f"{same_way} edges run the same way in two faces (inconsistent winding)")
         if problems:
             return problems
-    _, n_split = _fans(fcs, partner, n)
+    n_split = n if one_fan else _fans(fcs, partner, n)[1]
     if n_split != n:
         problems.append(f"{n_split - n} vertices join separate fans of faces")
     if len(fcs) == 0:
@@ -696,8 +849,40 @@ def _problems(pts, fcs, query, shells, twins=None) -> list[str]:
     return problems
 
 
+def _any_corner(flags: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Faces (F, 3) with a flagged vertex (``flags`` (V,) bool): (F,) bool."""
+    corner = flags[faces]
+    return corner[:, 0] | corner[:, 1] | corner[:, 2]
+
+
 def _diagonal(points: np.ndarray) -> float:
-    return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0))) if len(points) else 0.0
+    if len(points) == 0:
+        return 0.0
+    lo, hi = _box(points)
+    return float(np.linalg.norm(hi - lo))
+
+
+@njit(cache=True)
+def _box(points):
+    """Lowest and highest corner (3,) of the bounding box of ``points`` (V, 3), V > 0 (one pass; numpy's reduction
+    along the first axis of an (V, 3) array is slower)."""
+    lo = points[0].copy()
+    hi = points[0].copy()
+    for v in range(1, points.shape[0]):
+        for a in range(3):
+            lo[a] = min(lo[a], points[v, a])
+            hi[a] = max(hi[a], points[v, a])
+    return lo, hi
+
+
+def _cross_rows(u: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Cross products of the rows of u and w (N, 3), as :func:`numpy.cross` computes them (without its axis
+    handling, which costs more than the products on a few rows)."""
+    out = np.empty(u.shape)
+    out[:, 0] = u[:, 1] * w[:, 2] - u[:, 2] * w[:, 1]
+    out[:, 1] = u[:, 2] * w[:, 0] - u[:, 0] * w[:, 2]
+    out[:, 2] = u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]
+    return out
 
 
 def _finalized(result: RepairResult) -> RepairResult:
@@ -740,7 +925,8 @@ def _finalized(result: RepairResult) -> RepairResult:
             changed = changed[used]
     problems = []
     if len(result.faces):  # empty: nothing left, which is a valid result
-        problems = _problems(result.points, result.faces, changed[result.faces].any(axis=1), shells, twins)
+        problems = _problems(result.points, result.faces, _any_corner(changed, result.faces), shells, twins,
+                             one_fan=split is not None and twins is not None)
     if problems:
         raise RepairError("the result would not be a closed, oriented 2-manifold without self-intersections: "
                           + "; ".join(problems))
@@ -858,7 +1044,7 @@ def _used_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
 def _tolerance(points: np.ndarray, tolerance: float) -> float:
     if not (np.isfinite(tolerance) and tolerance >= 0.0):
         raise ValueError(f"tolerance must be a finite number >= 0; got {tolerance!r}")
-    return float(tolerance) * float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    return float(tolerance) * _diagonal(points)
 
 
 def _without_degenerate(pts, fcs, tol):

@@ -52,8 +52,7 @@ from pverosion.kernels.curvature.operator import CurvatureOperator
 from pverosion.kernels.exact.intersection import intersecting_faces, spatial_order
 from pverosion.kernels.mesh.geometry import vertex_normals
 from pverosion.kernels.mesh.orientation import ORIENTATIONS, orient_faces
-from pverosion.kernels.mesh.remesh import collapse_short_edges, short_edge_candidates
-from pverosion.kernels.mesh.topology import edge_topology, one_ring
+from pverosion.kernels.mesh.remesh import CollapseTopology, apply_collapses, plan_collapses, short_edge_candidates
 from pverosion.kernels.solver.protocol import SolverLoop
 from pverosion.kernels.validation import as_triangle_mesh
 
@@ -111,36 +110,6 @@ class _State:
     collapses: int
     stats: list = field(default_factory=list)
     extra: Any = None
-
-
-def _new_faces(old_points: np.ndarray, old_faces: np.ndarray, old_ids: np.ndarray, points: np.ndarray,
-               faces: np.ndarray, ids: np.ndarray) -> np.ndarray | None:
-    """Faces (F,) bool of a mesh that are not faces of an earlier state of it, matched by input vertex ids.
-
-    A face is old when its vertices' input ids (``ids`` (V,), ``old_ids`` (V0,)) name an earlier face with
-    the same orientation and its vertices sit where they did. None when ids repeat (a repair made new
-    vertices) or are too many to pack a face into one integer.
-    """
-    n_old = len(old_points)
-    if len(ids) == 0 or n_old == 0 or n_old ** 3 >= 2**62:
-        return None
-    where = np.full(int(max(ids.max(), old_ids.max())) + 1, -1, np.int64)
-    where[old_ids] = np.arange(n_old)
-    if np.count_nonzero(where >= 0) != n_old or len(np.unique(ids)) != len(ids):
-        return None
-    source = where[ids]  # each vertex's index in the earlier state, -1 for none
-    kept = source >= 0
-    kept[kept] = np.all(points[kept] == old_points[source[kept]], axis=1)
-    candidate = kept[faces].all(axis=1)
-
-    def keys(tri: np.ndarray) -> np.ndarray:  # one integer per face, the same for any rotation of its corners
-        first = np.argmin(tri, axis=1)[:, None]
-        rotated = np.take_along_axis(tri, (first + np.arange(3)) % 3, axis=1)
-        return (rotated[:, 0] * n_old + rotated[:, 1]) * n_old + rotated[:, 2]
-
-    new = np.ones(len(faces), bool)
-    new[candidate] = ~np.isin(keys(source[faces[candidate]]), keys(old_faces))
-    return new
 
 
 class GuardedMeshSolver(SolverLoop):
@@ -230,6 +199,7 @@ class GuardedMeshSolver(SolverLoop):
         self.profile: dict[str, list[float]] | None = None
         self._scale = np.ones(len(pts))  # displacement length factor per input vertex
         self._origin = pts.mean(axis=0)
+        self._collapsed: tuple | None = None  # collapses that :meth:`_build_topology` follows instead of a rebuild
         self._build_topology()
         self.initial_normals = vertex_normals(self.points, self.faces, weighting="area")
         self._volume0 = self.volume()
@@ -249,7 +219,7 @@ class GuardedMeshSolver(SolverLoop):
                     RuntimeWarning,
                     stacklevel=3,
                 )
-        self._clean = self._snapshot()
+        self._set_clean()
 
     # -- hooks ---------------------------------------------------------------------------
 
@@ -282,19 +252,27 @@ class GuardedMeshSolver(SolverLoop):
         return float(volume_area(self.points, self.faces, self._origin)[1])
 
     def _build_topology(self) -> None:
-        """Everything that depends on the faces only; rebuilt after edge collapses."""
+        """Everything that depends on the faces only; after edge collapses (``_collapsed``), updated from before."""
         n = len(self.points)
         self._curvature = self._curvature_estimator(self.faces, n)
-        topo = edge_topology(self.faces, n)
-        self._ring = one_ring(self.faces, n, edges=topo.edges)
-        self._edges = topo.edges
-        self._usable = topo.face_count == 2
-        self._fixed = topo.irregular_vertices(n)
+        if self._collapsed is None:
+            self._topology = CollapseTopology.build(self.faces, n)
+            self._order = None  # spatial face order of the intersection check, made on first use
+        else:
+            result, new_face = self._collapsed
+            self._collapsed = None
+            self._topology = self._topology.collapsed(result, new_face)
+            if self._order is not None:  # the faces left keep their order, still a good one for the check
+                order = new_face[self._order]
+                self._order = order[order >= 0]
+        self._ring = self._topology.ring
+        self._edges = self._topology.edges
+        self._usable = self._topology.usable
+        self._fixed = self._topology.fixed
         # curvature statistics leave out the fixed vertices and their one-ring, whose estimates an open rim spoils
         ring_ptr, ring_idx = self._ring
         self._interior = ~self._fixed
         self._interior[ring_idx[np.repeat(self._fixed, np.diff(ring_ptr))]] = False
-        self._order = None  # spatial face order of the intersection check, made on first use
 
     def mean_curvature(self) -> np.ndarray:
         """Mean curvature H (V',) of the current mesh."""
@@ -312,14 +290,22 @@ class GuardedMeshSolver(SolverLoop):
         locked = self._fixed | (self._scale[self.ids] == 0.0)
         if movable is not None:
             locked = locked | ~movable
-        result = collapse_short_edges(self.points, self.faces, candidates, locked)
-        if result.n_collapsed == 0:
+        pairs, positions = plan_collapses(self.points, self.faces, candidates, locked,
+                                          incidence=self._topology.incidence)
+        if len(pairs) == 0:
             return
+        result, new_face = apply_collapses(self.points, self.faces, pairs, positions)
         self.points, self.faces = result.points, result.faces
         self.ids = self.ids[result.kept]
         self.displacement = self.displacement[result.kept]
         self.collapses += result.n_collapsed
+        # the faces at a merged vertex are new since the restart point; the others kept their vertices
+        merged = np.zeros(len(result.kept), bool)
+        merged[np.searchsorted(result.kept, pairs[:, 0])] = True
+        self._since_clean = (self._since_clean[0][result.kept],
+                             self._since_clean[1][new_face >= 0] | merged[self.faces].any(axis=1))
         self._after_collapse(result.kept)
+        self._collapsed = (result, new_face)
         self._build_topology()
 
     def _after_collapse(self, kept: np.ndarray) -> None:
@@ -327,9 +313,11 @@ class GuardedMeshSolver(SolverLoop):
 
     # -- state ---------------------------------------------------------------------------
 
-    def _snapshot(self) -> _State:
-        return _State(self.points.copy(), self.faces.copy(), self.ids.copy(), self.displacement.copy(),
-                      self.step_count, self.collapses, list(self._stats), self._extra_state())
+    def _set_clean(self) -> None:
+        """Make the current state the restart point."""
+        self._clean = _State(self.points.copy(), self.faces.copy(), self.ids.copy(), self.displacement.copy(),
+                             self.step_count, self.collapses, list(self._stats), self._extra_state())
+        self._reset_tracking()
 
     def _restore(self, state: _State) -> None:
         faces_changed = len(state.faces) != len(self.faces) or not np.array_equal(state.faces, self.faces)
@@ -342,7 +330,13 @@ class GuardedMeshSolver(SolverLoop):
         self._stats = list(state.stats)
         if faces_changed:
             self._build_topology()
+        self._reset_tracking()
         self._restore_extra(state.extra)
+
+    def _reset_tracking(self) -> None:
+        """Start following the mesh from the current state, the restart point: ``_since_clean`` holds the index
+        of every vertex there (V',) and which faces (F',) collapses have made since."""
+        self._since_clean = (np.arange(len(self.points)), np.zeros(len(self.faces), bool))
 
     def _intersections(self, query: np.ndarray | None = None) -> np.ndarray:
         """Mask (F,) of the faces meeting a non-adjacent face (in pairs with a ``query`` face)."""
@@ -356,13 +350,11 @@ class GuardedMeshSolver(SolverLoop):
         Two faces kept from the (clean) restart point, with their vertices where they were, still do not
         meet; only pairs with a moved or new face need a check.
         """
-        clean = self._clean
         if self._baseline:
             return None  # a self-intersecting input is always compared whole against its baseline
-        if len(clean.faces) == len(self.faces) and np.array_equal(clean.faces, self.faces):
-            moved = np.any(self.points != clean.points, axis=1)
-            return moved[self.faces].any(axis=1)
-        return _new_faces(clean.points, clean.faces, clean.ids, self.points, self.faces, self.ids)
+        source, made = self._since_clean
+        moved = np.any(self.points != self._clean.points[source], axis=1)
+        return made | moved[self.faces].any(axis=1)
 
     def _lap(self, part: str, start: float) -> float:
         """Add the time since ``start`` to :attr:`profile` (when profiling) and restart the clock."""
@@ -398,7 +390,7 @@ class GuardedMeshSolver(SolverLoop):
         hits = self._intersections(self._moved_faces())
         self._lap("guard", clock)
         if np.count_nonzero(hits) <= self._baseline:
-            self._clean = self._snapshot()
+            self._set_clean()
             return True
         if self.repair == "topology":
             # imported here: the repair's exact predicates compile on import, and most runs never repair
@@ -409,7 +401,7 @@ class GuardedMeshSolver(SolverLoop):
             except RepairError:
                 pass  # no clean surface came out: roll back as "retry" does
             else:
-                self._clean = self._snapshot()
+                self._set_clean()
                 return True
         # halve the steps of the tangled faces' vertices and their two-ring neighbourhood
         near = np.zeros(len(self.points))
