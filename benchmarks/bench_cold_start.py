@@ -7,9 +7,8 @@ with the seconds it took (``cold_compiled``; a warm run should compile none). "c
 pointing at a new empty folder, as after a fresh install; "warm" repeats the
 same command with the cache the cold run filled. A cold run includes the
 compile helper process the command line starts (:mod:`pverosion._precompile`;
-``PVEROSION_PRECOMPILE=0`` in the environment turns it off, ``=1`` starts it
-even when the load average leaves no core to spare), and its CPU seconds
-count in ``cold_cpu_s``. Also timed: ``import
+``PVEROSION_PRECOMPILE=0`` in the environment turns it off), and its CPU
+seconds count in ``cold_cpu_s``. Also timed: ``import
 pverosion``, ``pverosion --help``, and ``pverosion warmup`` of every stage
 (parallel processes) into another empty cache, after which every stage's
 first run is timed again ("after_warmup").

@@ -22,9 +22,8 @@ the order a run calls them, in ``compile_plan.json`` next to this module, writte
 argument types have changed since is compiled for nothing (the stage compiles
 its own); one that no longer exists is skipped.
 
-The command line starts helpers unless ``PVEROSION_PRECOMPILE`` is ``0``, and
-only when a core is spare (:func:`spare_cpu`); ``PVEROSION_PRECOMPILE=1``
-makes the Python API start them too, spare core or not. Only on POSIX
+The command line starts helpers unless ``PVEROSION_PRECOMPILE`` is ``0``;
+``PVEROSION_PRECOMPILE=1`` makes the Python API start them too. Only on POSIX
 systems with several cores. Both processes save to the
 cache under a file lock (:func:`lock_cache_saves`).
 """
@@ -44,9 +43,9 @@ from contextlib import contextmanager
 from functools import cache
 from pathlib import Path
 
-__all__ = ["BUSY_LOAD_MARGIN", "CLAIM_SUFFIX", "HELPER_DELAY_S", "MIN_SAVING_S", "PLAN_FILE", "POLL_S",
+__all__ = ["CLAIM_SUFFIX", "HELPER_DELAY_S", "MIN_SAVING_S", "PLAN_FILE", "POLL_S",
            "WAIT_LIMIT_S", "compile_plan", "early_helper", "enabled", "helper_order", "helpers_allowed",
-           "lock_cache_saves", "plan", "shared_compilation", "spare_cpu", "start_helper", "start_helper_if_cold",
+           "lock_cache_saves", "plan", "shared_compilation", "start_helper", "start_helper_if_cold",
            "stop_helper", "worth_a_helper"]
 
 PLAN_FILE = Path(__file__).with_name("compile_plan.json")
@@ -55,8 +54,6 @@ HELPER_DELAY_S = 2.0
 """Seconds from the stage's first compilation until the helper, a new process, starts compiling."""
 MIN_SAVING_S = 2.0
 """Compile seconds a helper must save a stage (by the plan's figures) to be started."""
-BUSY_LOAD_MARGIN = 0.5
-"""No helper when the load average is at least the core count less this (:func:`spare_cpu`)."""
 WAIT_LIMIT_S = 90.0
 """Longest wait for another process's compilation of a kernel (:func:`shared_compilation`); a claim older than
 this is taken as abandoned."""
@@ -348,24 +345,11 @@ def enabled() -> bool:
     return setting == "1" and os.name == "posix" and (os.cpu_count() or 1) > 1
 
 
-def spare_cpu() -> bool:
-    """Whether a helper can have a core of its own: the 1-minute load average is below the core count less
-    :data:`BUSY_LOAD_MARGIN`, or ``PVEROSION_PRECOMPILE=1`` asks for helpers regardless.
-
-    Linux shares the cores between sessions first (autogroups), so on a busy
-    machine a helper only takes CPU time from the stage in its own session and
-    costs its start-up on top.
-    """
-    if os.environ.get(ENVIRONMENT) == "1" or not hasattr(os, "getloadavg"):
-        return True
-    return os.getloadavg()[0] < (os.cpu_count() or 1) - BUSY_LOAD_MARGIN
-
-
 def start_helper(stage: str) -> subprocess.Popen | None:
     """Start the helper process for ``stage`` if :func:`enabled`; None if not started. While it runs, this
     process shares its compilations with it (:func:`shared_compilation`)."""
     global _helper
-    if _helper is not None or not enabled() or not worth_a_helper(stage) or not spare_cpu():  # one at a time
+    if _helper is not None or not enabled() or not worth_a_helper(stage):  # one at a time
         return None
     lock_cache_saves()
     package_parent = str(Path(__file__).resolve().parents[1])
@@ -411,7 +395,7 @@ def start_helper_if_cold(stage: str) -> subprocess.Popen | None:
     """:func:`start_helper` now, before the stage reads its input, if the cache looks cold (:func:`_looks_cold`):
     the helper is then ready sooner than when started by the stage's first compilation. The caller stops it
     (:func:`stop_helper`)."""
-    if not enabled() or not worth_a_helper(stage) or not spare_cpu() or not _looks_cold(stage):
+    if not enabled() or not worth_a_helper(stage) or not _looks_cold(stage):
         return None
     return start_helper(stage)
 

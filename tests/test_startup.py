@@ -321,21 +321,6 @@ def test_an_abandoned_claim_is_taken_over_and_a_live_one_is_respected(tmp_path, 
         claim.unlink(missing_ok=True)
 
 
-def test_a_helper_only_with_a_spare_core_unless_asked_for(monkeypatch):
-    from pverosion import _precompile
-
-    monkeypatch.delenv("PVEROSION_PRECOMPILE", raising=False)
-    cores = os.cpu_count() or 1
-    monkeypatch.setattr(os, "getloadavg", lambda: (cores - 1.0, 0.0, 0.0))
-    assert _precompile.spare_cpu() == (cores - 1.0 < cores - _precompile.BUSY_LOAD_MARGIN)
-    monkeypatch.setattr(os, "getloadavg", lambda: (float(cores), 0.0, 0.0))
-    assert not _precompile.spare_cpu()
-    with _precompile.helpers_allowed():
-        assert _precompile.start_helper("curvature") is None  # every core busy: no helper
-    monkeypatch.setenv("PVEROSION_PRECOMPILE", "1")
-    assert _precompile.spare_cpu()
-
-
 def test_no_second_helper_while_one_runs(monkeypatch):
     from pverosion import _precompile
 
