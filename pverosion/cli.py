@@ -314,7 +314,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         # a stage takes Ctrl-C at its next step boundary; batch and demo are interrupted as usual
         deferred = deferred_interrupt() if hasattr(args, "filter_cls") else contextlib.nullcontext()
-        from pverosion._precompile import helpers_allowed  # a compile helper process on a cold cache
+        from pverosion._precompile import early_helper, helpers_allowed  # a compile helper process on a cold cache
 
         with deferred, warnings.catch_warnings(), helpers_allowed():
             warnings.showwarning = show
@@ -331,7 +331,8 @@ def main(argv: list[str] | None = None) -> int:
 
                 return run_view(args)
             else:
-                _run_stage(args)
+                with early_helper(args.filter_cls.command_name()):
+                    _run_stage(args)
     except KeyboardInterrupt:
         print(f"{where}: interrupted", file=sys.stderr)
         return 130

@@ -195,11 +195,22 @@ def test_helper_order_covers_the_plan_and_never_slows_the_stage(seed):
     seconds = list(np.random.default_rng(seed).exponential(1.0, size=20))
     order = helper_order(seconds, delay=1.0)
     assert sorted(order) == list(range(20))
-    best = min(_stage_seconds(seconds, sorted(order[:n]), 1.0) for n in range(21))
-    assert best <= _stage_seconds(seconds, [], 1.0) == pytest.approx(sum(seconds))
+    assert _stage_seconds(seconds, order, 1.0) <= _stage_seconds(seconds, [], 1.0) == pytest.approx(sum(seconds))
+    # the stage waits for a kernel the helper is compiling, so the helper only ever shortens it
+    assert all(_stage_seconds(seconds, order[:n], 1.0) <= sum(seconds) + 1e-9 for n in range(21))
     # one long kernel used last: the helper starts with it, and the stage only compiles the others
     assert helper_order([1.0, 1.0, 1.0, 1.0, 3.0], delay=0.5)[0] == 4
     assert _stage_seconds([1.0, 1.0, 1.0, 1.0, 3.0], [4], 0.5) == 4.0
+
+
+def test_stage_and_helper_meet_in_the_middle():
+    from pverosion._precompile import _stage_seconds, helper_order
+
+    # equal kernels, no delay: each process compiles half, the last ones first in the helper
+    assert helper_order([1.0] * 6, delay=0.0) == [5, 4, 3, 2, 1, 0]
+    assert _stage_seconds([1.0] * 6, [5, 4, 3, 2, 1, 0], 0.0) == 3.0
+    # the stage reaches the kernel the helper is compiling: it waits for it instead of compiling it too
+    assert _stage_seconds([1.0, 1.0, 4.0], [2], 0.0) == 4.0
 
 
 def test_a_helper_only_where_the_plan_shows_enough_to_gain(monkeypatch):
@@ -245,3 +256,96 @@ def test_locked_cache_saves_keep_every_entry_under_concurrent_saves(tmp_path):
         list(pool.map(save, range(4)))
     assert all(cache_file.load((w, i)) == f"{w}:{i}" for w in range(4) for i in range(25))
     assert (tmp_path / "pverosion-cache.lock").exists()
+
+
+def _claim_of(code_kernel: str, types: str) -> str:
+    """Python source defining ``kernel``, ``types`` and ``claim`` (its claim file) in a fresh process."""
+    return (f"from numba import types as nt\nfrom pverosion import _precompile\n{code_kernel}\n"
+            f"types = {types}\nclaim = _precompile._claim_path(kernel, types)\n")
+
+
+@pytest.mark.skipif(os.name != "posix", reason="the claims are for the POSIX compile helper")
+@pytest.mark.parametrize("stage", [True, False])
+def test_a_kernel_claimed_by_another_process_is_waited_for_and_loaded_not_compiled(tmp_path, stage):
+    """The claimant compiles only after the waiter has started waiting; the waiter then loads its cache entry.
+    The stage waits always, the helper (``stage`` False) when it holds no claim itself."""
+    kernel = "from pverosion.kernels.exact.intersection import _spread as kernel"
+    setup = _claim_of(kernel, "(nt.uint16,)")
+    claimant = setup + ("_precompile.lock_cache_saves()\nassert _precompile._claim(claim)\nprint('claimed', flush=True)\n"
+                        "import sys\nsys.stdin.readline()\nkernel.compile(types)\nclaim.unlink()\n")
+    waiter = setup + (
+        "import json\nfrom numba.core import event\ncompiled = []\n"
+        "class Seen(event.Listener):\n"
+        "    def on_start(self, ev): compiled.append(ev.data['dispatcher'].py_func.__name__)\n"
+        "    def on_end(self, ev): pass\n"
+        "event.register('numba:compile', Seen())\n_precompile.lock_cache_saves()\n"
+        f"_precompile._share_compilations(wait={stage})\nprint('waiting', flush=True)\n"
+        "kernel.compile(types)\nprint(json.dumps({'compiled': compiled, 'claim_left': claim.exists(),"
+        " 'value': kernel(nt.uint16(3))}))\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    first = subprocess.Popen([sys.executable, "-c", claimant], env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                             text=True)
+    assert first.stdout.readline().strip() == "claimed"
+    second = subprocess.Popen([sys.executable, "-c", waiter], env=env, stdout=subprocess.PIPE, text=True)
+    assert second.stdout.readline().strip() == "waiting"
+    first.communicate("go\n", timeout=120)  # the claimant compiles only now, while the waiter waits
+    result = json.loads(second.communicate(timeout=120)[0].strip().splitlines()[-1])
+    assert first.returncode == 0 and second.returncode == 0
+    assert result == {"compiled": [], "claim_left": False, "value": 0b1001}
+
+
+@pytest.mark.skipif(os.name != "posix", reason="the claims are for the POSIX compile helper")
+def test_an_abandoned_claim_is_taken_over_and_a_live_one_is_respected(tmp_path, monkeypatch):
+    from pverosion import _precompile
+    from pverosion.kernels.exact.intersection import _spread
+
+    claim = _precompile._claim_path(_spread, (numba.types.uint32,))
+    assert claim is not None and claim.name.endswith(_precompile.CLAIM_SUFFIX)
+    ended = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True,
+                           check=True)
+    claim.write_text(ended.stdout.strip())  # a process that has ended mid-compilation
+    try:
+        assert _precompile._claimant_alive(claim) is False
+        assert _precompile._claim(claim) and claim.read_text() == str(os.getpid())
+        claim.write_text(str(os.getppid()))  # a live process
+        assert _precompile._claimant_alive(claim) and not _precompile._claim(claim)
+        # the helper skips a plan entry another live process has claimed
+        entries = [["pverosion.kernels.exact.intersection", "_spread", "(uint32,)", 0.1]]
+        monkeypatch.setattr(_precompile, "_plans", lambda: {"test": entries})
+        assert _precompile.compile_plan("test") == 0 and (numba.types.uint32,) not in _spread.overloads
+        claim.unlink()
+        assert _precompile._claimant_alive(claim) is None
+        assert _precompile.compile_plan("test") == 1 and not claim.exists()
+        assert _precompile._claim_path(_spread, (numba.types.uint32,)) is None  # compiled here: nothing to claim
+    finally:
+        claim.unlink(missing_ok=True)
+
+
+def test_no_second_helper_while_one_runs(monkeypatch):
+    from pverosion import _precompile
+
+    class Running:
+        pid = -1
+
+        def poll(self):
+            return None
+
+    monkeypatch.setenv("PVEROSION_PRECOMPILE", "1")
+    monkeypatch.setattr(_precompile, "_helper", Running())
+    assert _precompile.start_helper("curvature") is None
+
+
+def test_a_cold_cache_is_told_from_the_first_kernel_of_the_plan(tmp_path, monkeypatch):
+    from pverosion import _precompile
+    from pverosion.kernels.exact.intersection import _spread
+
+    _spread(np.int64(1))  # in the cache now
+    monkeypatch.setattr(_precompile, "_plans", lambda: {
+        "warm": [["pverosion.kernels.exact.intersection", "_spread", "(int64,)", 0.1]],
+        "stale": [["pverosion.kernels.exact.intersection", "no_such_kernel", "(int64,)", 0.1]]})
+    assert not _precompile._looks_cold("warm") and not _precompile._looks_cold("stale")
+    assert not _precompile._looks_cold("unknown")
+    probe = "from pverosion import _precompile\nprint(_precompile._looks_cold('curvature'))"
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(tmp_path / "empty")}
+    done = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "True"
