@@ -6,8 +6,11 @@ import itertools
 import os
 import shutil
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
+import numba
 import numpy as np
 import pytest
 import pyvista as pv
@@ -19,6 +22,36 @@ os.environ.setdefault("PYVISTA_OFF_SCREEN", "true")
 DATA = data_path()
 
 _DISPLAYS = itertools.count()
+
+
+def one_and_all_threads(call: Callable[[], Any]) -> tuple[Any, Any]:
+    """``call()`` with one numba thread, then with all ``NUMBA_NUM_THREADS``; skips the test when only one
+    thread exists. The caller's thread count is restored."""
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs at least two threads to compare")
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = call()
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        many = call()
+    finally:
+        numba.set_num_threads(before)
+    return one, many
+
+
+def assert_filter_equals_kernel(out: pv.PolyData, points: np.ndarray, faces: np.ndarray, orientation: str):
+    """Assert that the curvature filter's output ``out`` holds, bit for bit, what ``orient_faces`` followed by
+    ``principal_curvatures`` gives for the (n, 3) ``points`` and (m, 3) ``faces``; returns the orientation."""
+    from pverosion.kernels import orient_faces, principal_curvatures
+
+    oriented = orient_faces(points, faces, mode=orientation)
+    expected = principal_curvatures(points, oriented.faces)
+    for name, values in (("k1", expected.k1), ("k2", expected.k2), ("normals", expected.normals),
+                         ("principal_direction_1", expected.direction1)):
+        assert np.array_equal(out[name], values), name
+    np.testing.assert_array_equal(out.regular_faces, oriented.faces)
+    return oriented
 
 
 def with_x_server(command: list[str], *, env: dict | None = None, screen: str = "1024x768x24") -> list[str]:

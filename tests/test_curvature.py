@@ -3,11 +3,11 @@ import gc
 import numpy as np
 import pytest
 import pyvista as pv
-from conftest import height_field, icosphere
+from conftest import assert_filter_equals_kernel, height_field, icosphere, one_and_all_threads
 
 import pverosion
 from pverosion.examples import load_cylinder, load_torus
-from pverosion.kernels import InvalidMeshError, orient_faces, principal_curvatures
+from pverosion.kernels import InvalidMeshError, principal_curvatures
 from pverosion.kernels.curvature.operator import CurvatureOperator, CurvatureTracker
 
 
@@ -119,20 +119,9 @@ def test_operator_reuses_connectivity_and_matches_one_shot():
 
 
 def test_result_is_independent_of_thread_count():
-    import numba
-
     s = icosphere(1.0, 4)
     p = s.points * (1.0 + 0.1 * np.random.default_rng(0).random((s.n_points, 1)))
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("needs at least two threads to compare")
-    before = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        one = principal_curvatures(p, s.regular_faces)
-        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
-        many = principal_curvatures(p, s.regular_faces)
-    finally:
-        numba.set_num_threads(before)
+    one, many = one_and_all_threads(lambda: principal_curvatures(p, s.regular_faces))
     assert np.array_equal(one.k1, many.k1) and np.array_equal(one.direction1, many.direction1)
 
 
@@ -186,10 +175,5 @@ def test_curvature_filter_equals_orientation_then_kernel(bunny, orientation):
     out = pverosion.curvature(bunny, orientation=orientation)
     gc.collect()  # the output's arrays share the kernel's memory: they must outlive the filter's temporaries
     _ = [np.full((bunny.n_points, 3), 7.0) for _ in range(8)]
-    oriented = orient_faces(points, faces, mode=orientation)
-    expected = principal_curvatures(points, oriented.faces)
-    for name, values in (("k1", expected.k1), ("k2", expected.k2), ("normals", expected.normals),
-                         ("principal_direction_1", expected.direction1)):
-        assert np.array_equal(out[name], values), name
-    np.testing.assert_array_equal(out.regular_faces, oriented.faces)
+    oriented = assert_filter_equals_kernel(out, points, faces, orientation)
     assert out.field_data["flipped_faces"][0] == oriented.n_flipped

@@ -1,8 +1,7 @@
-import numba
 import numpy as np
 import pytest
 import pyvista as pv
-from conftest import icosphere
+from conftest import assert_filter_equals_kernel, icosphere, one_and_all_threads
 
 import pverosion
 from pverosion.examples import load_torus
@@ -116,16 +115,7 @@ def test_renumbered_operator_keeps_its_numbering_and_takes_normals(bumpy):
 
 def test_renumbered_curvature_is_independent_of_thread_count(bumpy):
     points, faces, _ = bumpy
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("needs at least two threads to compare")
-    before = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        one = principal_curvatures(points, faces)
-        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
-        many = principal_curvatures(points, faces)
-    finally:
-        numba.set_num_threads(before)
+    one, many = one_and_all_threads(lambda: principal_curvatures(points, faces))
     for name, value in _fields(one).items():
         assert np.array_equal(value, _fields(many)[name]), name
 
@@ -149,12 +139,7 @@ def test_filter_equals_orientation_then_kernel_when_renumbered(bumpy, orientatio
     flipped[::3] = flipped[::3, ::-1]  # inconsistent input winding
     mesh = pv.PolyData.from_regular_faces(points, flipped)
     out = pverosion.curvature(mesh, orientation=orientation)
-    oriented = orient_faces(points, flipped, mode=orientation)
-    expected = principal_curvatures(points, oriented.faces)
-    for name, values in (("k1", expected.k1), ("k2", expected.k2), ("normals", expected.normals),
-                         ("principal_direction_1", expected.direction1)):
-        assert np.array_equal(out[name], values), name
-    np.testing.assert_array_equal(out.regular_faces, oriented.faces)
+    assert_filter_equals_kernel(out, points, flipped, orientation)
     sign = 1.0 if orientation == "outward" else -1.0
     assert np.mean(sign * out["mean_curvature"]) > 0.5  # a bumpy unit sphere
 

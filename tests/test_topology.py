@@ -1,8 +1,7 @@
 import numpy as np
-import pytest
 import pyvista as pv
 import scipy.sparse as sp
-from conftest import icosphere
+from conftest import icosphere, one_and_all_threads
 from scipy.sparse.csgraph import connected_components
 
 from pverosion.examples import load_cylinder
@@ -137,21 +136,10 @@ def test_twins_of_a_closed_surface_pair_up_opposite_half_edges():
 
 
 def test_sorted_twins_split_over_threads_equal_one_pass():
-    import numba
-
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("needs at least two threads to compare")
     rng = np.random.default_rng(5)
     s = pv.Icosphere(nsub=5)  # 20480 faces: several parts of the counting sort
     f = s.regular_faces[rng.permutation(s.n_cells)].astype(np.int64)
-    before = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        one = sorted_twins(f, s.n_points)
-        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
-        many = sorted_twins(f, s.n_points)
-    finally:
-        numba.set_num_threads(before)
+    one, many = one_and_all_threads(lambda: sorted_twins(f, s.n_points))
     for a, b in zip(one, many):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(many[0], locality_order(f, s.n_points))

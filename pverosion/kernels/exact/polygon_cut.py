@@ -109,6 +109,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from pverosion.kernels._search import lower_bound
 from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges
 from pverosion.kernels.exact.predicates import orient2d
 
@@ -301,21 +302,6 @@ def _argsort(values: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def _lower_bound(sorted_values: np.ndarray, value: int) -> int:
-    """First index of the ascending (n,) int64 array ``sorted_values`` whose entry is >= ``value`` (n if none),
-    as ``np.searchsorted``, whose compilation costs more."""
-    lo = 0
-    hi = sorted_values.shape[0]
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if sorted_values[mid] < value:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
-
-
-@njit(cache=True)
 def _empty_result() -> tuple[np.ndarray, np.ndarray]:
     """The failure result: an empty (0, 3) triangle array and an empty region array."""
     return np.empty((0, 3), dtype=np.int64), np.empty(0, dtype=np.int64)
@@ -427,10 +413,10 @@ def _delaunay_flips(xy: np.ndarray, tri: np.ndarray, nt: int, eu: np.ndarray, ev
                 if a > b:
                     continue  # each edge once, from its triangle with a < b
                 undirected = a * n + b
-                q = _lower_bound(fixed, undirected)
+                q = lower_bound(fixed, 0, fixed.shape[0], undirected)
                 if q < fixed.shape[0] and fixed[q] == undirected:
                     continue
-                q = _lower_bound(sorted_keys, b * n + a)
+                q = lower_bound(sorted_keys, 0, sorted_keys.shape[0], b * n + a)
                 if q >= sorted_keys.shape[0] or sorted_keys[q] != b * n + a:
                     continue
                 u = order[q] // 3

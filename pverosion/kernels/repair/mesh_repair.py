@@ -41,6 +41,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numba import njit
 
+from pverosion.kernels._search import lower_bound
 from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges
 from pverosion.kernels.exact.intersection import intersecting_faces
 from pverosion.kernels.exact.intersection_curves import (
@@ -52,7 +53,7 @@ from pverosion.kernels.exact.intersection_curves import (
     trace_polylines,
     unique_rows,
 )
-from pverosion.kernels.exact.polygon_cut import _lower_bound, cut_triangles
+from pverosion.kernels.exact.polygon_cut import cut_triangles
 from pverosion.kernels.exact.predicates import sign_orient2d
 from pverosion.kernels.mesh.degenerate import remove_degenerate_faces
 from pverosion.kernels.mesh.geometry import average_edge_length
@@ -370,7 +371,7 @@ def _patches(faces, n_vertices, cut_edges, pairs_only=False):
             a, b = faces[f, k], faces[f, (k + 1) % 3]
             if a > b:
                 continue  # every edge from the face where it runs upwards
-            at = _lower_bound(cut_edges, a * n_vertices + b)
+            at = lower_bound(cut_edges, 0, cut_edges.shape[0], a * n_vertices + b)
             if at < cut_edges.shape[0] and cut_edges[at] == a * n_vertices + b:
                 continue
             if pairs_only:

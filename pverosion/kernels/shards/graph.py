@@ -43,6 +43,7 @@ from numba import njit, prange
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from pverosion.kernels._search import lower_bound
 from pverosion.kernels.mesh.topology import halfedge_twins
 from pverosion.kernels.shards.voronoi import MAX_FACE_VERTICES, MAX_FACES, cell_polygons, seed_grid
 from pverosion.kernels.spatial.grid import box_items, grid_over
@@ -709,13 +710,7 @@ def _group(recs, n):
 @njit(cache=True)
 def _find(start, labels, c, lab):
     """Position of cell ``c``'s record labelled ``lab`` in the grouped records, -1 if it has none."""
-    lo, hi = start[c], start[c + 1]
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if labels[mid] < lab:
-            lo = mid + 1
-        else:
-            hi = mid
+    lo = lower_bound(labels, start[c], start[c + 1], lab)
     return lo if lo < start[c + 1] and labels[lo] == lab else -1
 
 
