@@ -16,9 +16,10 @@ from importlib import import_module
 from typing import TYPE_CHECKING
 
 from pverosion._moved import install as _install_moved_modules
-from pverosion._runtime import configure_environment
+from pverosion._runtime import configure_allocator, configure_environment
 
 configure_environment()  # before numba starts its threads
+configure_allocator()  # scratch arrays stay mapped between kernel calls
 _install_moved_modules()  # old module paths of the flat layout keep working, with a DeprecationWarning
 
 __version__ = "0.1.0"

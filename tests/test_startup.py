@@ -6,6 +6,7 @@ import importlib
 import io
 import json
 import os
+import platform
 import subprocess
 import sys
 from pathlib import Path
@@ -16,7 +17,15 @@ import pytest
 
 import pverosion
 from pverosion import _runtime
-from pverosion._runtime import POINTS_PER_THREAD, WORK_NOT_IN_POINTS, configure_environment, stage_run, threads_for
+from pverosion._runtime import (
+    ALLOCATOR_SETTINGS,
+    POINTS_PER_THREAD,
+    WORK_NOT_IN_POINTS,
+    configure_allocator,
+    configure_environment,
+    stage_run,
+    threads_for,
+)
 from pverosion._stages import STAGE_INDEX, load_stage
 from pverosion.cli import main
 from pverosion.warmup import WARMUPS, warm_up
@@ -90,6 +99,27 @@ def test_stage_help_still_has_the_stage_options(capsys):
     with pytest.raises(SystemExit):
         main(["curvature", "--help"])
     assert "--orientation" in capsys.readouterr().out
+
+
+def test_allocator_settings_leave_the_users_settings():
+    calls = []
+
+    def mallopt(number, value):
+        calls.append((number, value))
+        return 1
+
+    assert configure_allocator({"MALLOC_TRIM_THRESHOLD_": "0"}, mallopt) == {}
+    assert configure_allocator({"PVEROSION_MALLOC_TUNING": "0"}, mallopt) == {}
+    assert calls == []  # nothing touched
+    assert configure_allocator({}, mallopt) == {name: value for name, (_, value) in ALLOCATOR_SETTINGS.items()}
+    assert calls == list(ALLOCATOR_SETTINGS.values())
+    refused = configure_allocator({}, lambda number, value: 0)  # mallopt reports failure: reported as not set
+    assert refused == {}
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux") or platform.libc_ver()[0] != "glibc", reason="glibc only")
+def test_allocator_settings_apply_on_glibc():
+    assert configure_allocator({}) == {name: value for name, (_, value) in ALLOCATOR_SETTINGS.items()}
 
 
 def test_environment_defaults_leave_the_users_settings():
