@@ -90,8 +90,8 @@ def configure_allocator(environ: Mapping[str, str] | None = None,
     again. The kernels allocate several such arrays per call (the per-chunk
     sums of the curvature are 4 x V x 4 doubles), and after other libraries
     (VTK filters among them) have run, the fault-in can cost more than the
-    computation: the curvature of the 36k-point bunny scan took 16.6 ms
-    instead of 6.6 ms when timed between vtkCurvatures calls. This sets
+    computation (``benchmarks/bench_curvature.py`` prints the bunny's kernel
+    time between vtkCurvatures calls with and without this). This sets
     :data:`ALLOCATOR_SETTINGS` with ``mallopt``: allocations up to 32 MB come
     from the heap, and up to 64 MB of freed memory at its top stays mapped.
 
