@@ -526,7 +526,8 @@ def _pair_range(points, faces, planes, lo, hi, todo, group, query, cell, start, 
         m = _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, f, out, n)
         if m > out.shape[0]:
             grown = np.empty((max(2 * out.shape[0], m), 2), np.int64)
-            grown[:n] = out[:n]
+            for j in range(n):  # element by element: an array slice assignment compiles numba's shape error
+                grown[j, 0], grown[j, 1] = out[j, 0], out[j, 1]
             out = grown
             m = _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, f,
                                 out, n)

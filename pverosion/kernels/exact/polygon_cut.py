@@ -287,7 +287,8 @@ def _sift_down(values: np.ndarray, idx: np.ndarray, root: int, end: int) -> None
 
 @njit(cache=True)
 def _argsort(values: np.ndarray) -> np.ndarray:
-    """(n,) int64 indices that sort the (n,) array ``values`` ascending (heapsort, not stable).
+    """(n,) int64 indices that sort the (n,) int64 array ``values`` ascending (heapsort, not stable; float keys
+    go through :func:`_order_keys`).
 
     Used instead of ``np.argsort``, whose compilation costs seconds.
     """
@@ -299,6 +300,21 @@ def _argsort(values: np.ndarray) -> np.ndarray:
         idx[0], idx[end] = idx[end], idx[0]
         _sift_down(values, idx, np.int64(0), end)  # not the literal 0: one compiled variant
     return idx
+
+
+@njit(cache=True)
+def _order_keys(values: np.ndarray) -> np.ndarray:
+    """(n,) int64 keys in the order of the (n,) contiguous float64 ``values`` (not NaN; -0.0 before 0.0), so
+    that one compiled :func:`_argsort` (int64) sorts both kinds of key.
+
+    The bits of a float64 read as an int64 increase with the value for non-negative values and decrease for
+    negative ones; flipping all but the sign bit of the negative ones makes them increase too.
+    """
+    bits = values.view(np.int64)
+    keys = np.empty(bits.shape[0], np.int64)
+    for i in range(bits.shape[0]):
+        keys[i] = bits[i] ^ 0x7FFFFFFFFFFFFFFF if bits[i] < 0 else bits[i]
+    return keys
 
 
 @njit(cache=True)
@@ -469,7 +485,7 @@ def _boundary_cycle(location: np.ndarray, edge_param: np.ndarray) -> np.ndarray:
                 idx[cnt] = i
                 par[cnt] = edge_param[i]
                 cnt += 1
-        order = _argsort(par)
+        order = _argsort(_order_keys(par))
         for j in range(cnt):
             bnd[nb] = idx[order[j]]
             nb += 1
@@ -712,7 +728,7 @@ def _bridge_target(
     for j in range(mc):
         p = pt[merged[j]]
         d2[j] = (xy[p, 0] - xy[v, 0]) ** 2 + (xy[p, 1] - xy[v, 1]) ** 2
-    order = _argsort(d2)
+    order = _argsort(_order_keys(d2))
     for jj in range(mc):
         cand = merged[order[jj]]
         p = pt[cand]

@@ -224,7 +224,8 @@ def _face_point_rows(fcs, canon, pairs, segments, locations):
             n_edge += 1
     rows, slots = _edge_matches(edge_key, keys.ravel())
     out = np.empty((own.shape[0] + rows.shape[0], 3), np.int64)
-    out[:own.shape[0]] = own
+    for r in range(own.shape[0]):  # element by element: an array slice assignment compiles numba's shape error
+        out[r, 0], out[r, 1], out[r, 2] = own[r, 0], own[r, 1], own[r, 2]
     for i in range(rows.shape[0]):
         r = own.shape[0] + i
         out[r, 0], out[r, 1], out[r, 2] = slots[i] // 3, own[on_edge[rows[i]], 1], 3 + slots[i] % 3
