@@ -66,11 +66,15 @@ class EdgeTopology:
 
 
 @njit(cache=True, error_model="numpy")
-def _bucket_halfedges(faces, start, fill, bucket_hi, bucket_half):
-    """Bucket every half-edge that is not zero-length by its smaller vertex (a counting sort, in face order).
+def _group_halfedges(faces, start, fill, bucket_hi, bucket_half, edge_of_slot, edges, count, halfedge_edge):
+    """Group the half-edges that are not zero-length into undirected edges; returns the number of edges E.
 
-    ``start`` (V + 1,) must be zero; it receives the bucket offsets. ``fill`` (V,) is scratch. Bucket
-    ``v`` is ``start[v]:start[v + 1]`` of ``bucket_hi`` (the larger vertex) and ``bucket_half`` (``3 f + k``).
+    The half-edges are bucketed by their smaller vertex (a counting sort, in face order: bucket ``v`` is
+    ``start[v]:start[v + 1]`` of ``bucket_hi``, the larger vertex, and ``bucket_half``, ``3 f + k``); those
+    of one bucket with the same larger vertex form one edge, numbered in order of first appearance, into
+    ``edges`` (E, 2) and ``count`` (E,, the number of half-edges), and the edge of each half-edge goes to
+    ``halfedge_edge`` (3F,). ``start`` (V + 1,) must be zero, ``edge_of_slot`` and ``halfedge_edge`` ``-1``;
+    ``fill`` (V,) is scratch.
     """
     n_faces = faces.shape[0]
     n_vertices = fill.shape[0]
@@ -96,16 +100,8 @@ def _bucket_halfedges(faces, start, fill, bucket_hi, bucket_half):
             bucket_hi[i] = hi
             bucket_half[i] = 3 * f + k
             fill[lo] = i + 1
-
-
-@njit(cache=True, error_model="numpy")
-def _merge_buckets(start, bucket_hi, bucket_half, edge_of_slot, edges, count, halfedge_edge):
-    """Number the edges of the buckets of :func:`_bucket_halfedges`: half-edges of one bucket with the same larger
-    vertex form one edge, numbered in order of first appearance, into ``edges`` and ``count`` (the number of
-    half-edges), and the edge of each half-edge into ``halfedge_edge`` (3F,). ``edge_of_slot`` (scratch) and
-    ``halfedge_edge`` must be ``-1``; returns E."""
     n_edges = 0
-    for v in range(start.shape[0] - 1):
+    for v in range(n_vertices):
         for i in range(start[v], start[v + 1]):
             if edge_of_slot[i] >= 0:
                 continue
@@ -119,7 +115,7 @@ def _merge_buckets(start, bucket_hi, bucket_half, edge_of_slot, edges, count, ha
             edges[n_edges, 0] = v
             edges[n_edges, 1] = bucket_hi[i]
             n_edges += 1
-    for i in range(start[-1]):
+    for i in range(start[n_vertices]):
         halfedge_edge[bucket_half[i]] = edge_of_slot[i]
     return n_edges
 
@@ -141,16 +137,13 @@ def edge_topology(faces: np.ndarray, n_vertices: int) -> EdgeTopology:
     faces = np.ascontiguousarray(faces, dtype=np.int64)
     n_vertices = int(n_vertices)
     n_faces = faces.shape[0]
-    start = np.zeros(n_vertices + 1, np.int64)
-    bucket_hi = np.empty(3 * n_faces, np.int64)
-    bucket_half = np.empty(3 * n_faces, np.int64)
-    _bucket_halfedges(faces, start, np.empty(n_vertices, np.int64), bucket_hi, bucket_half)
-    n_half = int(start[-1])
-    edge_of_slot = np.full(n_half, -1, np.int64)
+    n_half = 3 * n_faces  # at most
     edges = np.empty((n_half, 2), np.int64)
     count = np.empty(n_half, np.int64)
-    halfedge_edge = np.full(3 * n_faces, -1, np.int64)
-    n_edges = _merge_buckets(start, bucket_hi, bucket_half, edge_of_slot, edges, count, halfedge_edge)
+    halfedge_edge = np.full(n_half, -1, np.int64)
+    n_edges = _group_halfedges(faces, np.zeros(n_vertices + 1, np.int64), np.empty(n_vertices, np.int64),
+                               np.empty(n_half, np.int64), np.empty(n_half, np.int64), np.full(n_half, -1, np.int64),
+                               edges, count, halfedge_edge)
     return EdgeTopology(edges=edges[:n_edges].copy(), halfedge_edge=halfedge_edge.reshape(n_faces, 3),
                         face_count=count[:n_edges].copy())
 
@@ -313,19 +306,15 @@ def _count_parts(faces, bounds, lows, counts, start, stop):
             counts[p, a2] += 1
 
 
-@njit(cache=True, error_model="numpy")
-def _part_offsets(lows, counts, indptr):
-    """Turn the per-part counts of :func:`_count_parts` into the first sorted position of each part's faces per
-    smallest vertex and of its corners per vertex, in place, and the corner offsets into ``indptr`` (V + 1,)."""
-    n_parts, n_vertices = lows.shape
-    low_pos = 0
-    corner_pos = 0
-    for v in range(n_vertices):
-        indptr[v] = corner_pos
-        for p in range(n_parts):
-            low_pos, lows[p, v] = low_pos + lows[p, v], low_pos
-            corner_pos, counts[p, v] = corner_pos + counts[p, v], corner_pos
-    indptr[n_vertices] = corner_pos
+def _part_offsets(lows: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Turn the per-part counts (P, V) of :func:`_count_parts` into the first sorted position of each part's faces
+    per smallest vertex and of its corners per vertex, in place; returns the corner offsets ``indptr`` (V + 1,)."""
+    indptr = np.zeros(counts.shape[1] + 1, np.int64)
+    np.cumsum(counts.sum(axis=0), out=indptr[1:])
+    for table in (lows, counts):  # exclusive running sums in vertex-major, part-minor order
+        flat = table.T.ravel()
+        table.T[...] = (np.cumsum(flat) - flat).reshape(table.shape[1], table.shape[0])
+    return indptr
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -361,8 +350,7 @@ def _sort_with_slots(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, ..
     lows = np.zeros((parts, n_vertices), np.int64)
     counts = np.zeros((parts, n_vertices), np.int64)
     for_ranges(_count_parts, parts, faces, bounds, lows, counts, min_items=1)
-    indptr = np.empty(n_vertices + 1, np.int64)
-    _part_offsets(lows, counts, indptr)
+    indptr = _part_offsets(lows, counts)
     order = np.empty(n_faces, np.int64)
     rows = np.empty_like(faces)
     after, before, half = (np.empty(3 * n_faces, np.int32) for _ in range(3))
