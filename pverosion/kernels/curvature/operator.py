@@ -126,8 +126,7 @@ def _fit_face_tensor(e0, e1, e2, l0, n, nn, dn0, dn1, dn2):
     return True, t, b, n, ta, tb, tc
 
 
-# called three times per face: compiled once, not inlined three times (a second less to compile on a cold cache)
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _to_vertex_frame(nrm, u, t, b, nf, ta, tb, tc):
     """Tensor ``[[ta, tb], [tb, tc]]`` of a face frame expressed in the frame of a vertex.
 
