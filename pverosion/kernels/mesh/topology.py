@@ -72,7 +72,7 @@ def _group_halfedges(faces, start, fill, bucket_hi, bucket_half, edge_of_slot, e
     The half-edges are bucketed by their smaller vertex (a counting sort, in face order: bucket ``v`` is
     ``start[v]:start[v + 1]`` of ``bucket_hi``, the larger vertex, and ``bucket_half``, ``3 f + k``); those
     of one bucket with the same larger vertex form one edge, numbered in order of first appearance, into
-    ``edges`` (E, 2) and ``count`` (E,, the number of half-edges), and the edge of each half-edge goes to
+    ``edges`` (E, 2), with its number of half-edges in ``count`` (E,); the edge of each half-edge goes to
     ``halfedge_edge`` (3F,). ``start`` (V + 1,) must be zero, ``edge_of_slot`` and ``halfedge_edge`` ``-1``;
     ``fill`` (V,) is scratch.
     """
