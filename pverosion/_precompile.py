@@ -3,7 +3,7 @@
 numba compiles a kernel in the process that first calls it, one kernel after
 another. On a cold cache (a fresh install) a stage's first run therefore
 spends most of its time compiling on one core. When the stage compiles its
-first kernel (the command line: before reading the input, when the cache
+first kernel (the command line: before it imports the stage, when the cache
 looks cold), :func:`start_helper` starts ``python -m pverosion._precompile
 STAGE``: it compiles the stage's kernels into the same numba cache, those the
 stage needs last first (:func:`helper_order`), while the stage compiles from
@@ -50,8 +50,10 @@ __all__ = ["CLAIM_SUFFIX", "HELPER_DELAY_S", "MIN_SAVING_S", "PLAN_FILE", "POLL_
 
 PLAN_FILE = Path(__file__).with_name("compile_plan.json")
 ENVIRONMENT = "PVEROSION_PRECOMPILE"
-HELPER_DELAY_S = 2.0
-"""Seconds from the stage's first compilation until the helper, a new process, starts compiling."""
+HELPER_DELAY_S = 0.0
+"""Seconds from the stage's first compilation until the helper, a new process, starts compiling: none, as the
+command line starts the helper before it imports the stage (:func:`early_helper`), and the helper is compiling by
+the time the stage reads its input."""
 MIN_SAVING_S = 2.0
 """Compile seconds a helper must save a stage (by the plan's figures) to be started."""
 WAIT_LIMIT_S = 90.0

@@ -302,6 +302,17 @@ def main(argv: list[str] | None = None) -> int:
             warnings.showwarning = lambda message, *_a, **_k: print(f"pverosion: warning: {message}", file=sys.stderr)
             new = resolve_command(command)
         argv[argv.index(command)] = command = new
+    from pverosion._precompile import early_helper, helpers_allowed
+
+    # on a cold cache the compile helper process starts now, its imports overlapping the stage's
+    asks_help = any(arg in ("-h", "--help") for arg in argv)
+    helper = contextlib.nullcontext() if command is None or asks_help else early_helper(command)
+    with helpers_allowed(), helper:
+        return _main(argv, command, typed)
+
+
+def _main(argv: list[str], command: str | None, typed: str | None) -> int:
+    """:func:`main` after the command is known."""
     parser = build_parser(stages={command})  # only the chosen stage's filter module is imported
     args = parser.parse_args(argv)
     from pverosion.filters.base import deferred_interrupt  # after --help, which needs no VTK
@@ -314,9 +325,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         # a stage takes Ctrl-C at its next step boundary; batch and demo are interrupted as usual
         deferred = deferred_interrupt() if hasattr(args, "filter_cls") else contextlib.nullcontext()
-        from pverosion._precompile import early_helper, helpers_allowed  # a compile helper process on a cold cache
-
-        with deferred, warnings.catch_warnings(), helpers_allowed():
+        with deferred, warnings.catch_warnings():
             warnings.showwarning = show
             if args.command == "demo":
                 _run_demo(args)
@@ -331,8 +340,7 @@ def main(argv: list[str] | None = None) -> int:
 
                 return run_view(args)
             else:
-                with early_helper(args.filter_cls.command_name()):
-                    _run_stage(args)
+                _run_stage(args)
     except KeyboardInterrupt:
         print(f"{where}: interrupted", file=sys.stderr)
         return 130

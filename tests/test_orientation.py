@@ -111,3 +111,56 @@ def test_sorted_orientation_matches_the_input_order_result():
     assert np.all(np.diff(lo) >= 0)  # sorted by smallest vertex
     with pytest.raises(ValueError, match="orientation must be"):
         orient_sorted(p, f, mode="keep")
+
+
+def _touching_spheres():
+    """Two unit spheres side by side that share one vertex (a non-manifold vertex, no shared edge)."""
+    s = icosphere(1.0, 2)
+    p, f = np.asarray(s.points), s.regular_faces
+    touch = int(np.argmax(p[:, 0]))  # the right sphere's rightmost vertex ...
+    mirrored = p * [-1.0, 1.0, 1.0] + [2.0 * p[touch, 0], 0.0, 0.0]  # ... is the left one of its mirror image
+    second = f[:, ::-1] + len(p)  # mirroring reverses the winding: reversed again, still outward
+    second[second == touch + len(p)] = touch
+    return np.vstack([p, mirrored]), f, second
+
+
+@pytest.mark.parametrize("inward_shell", [0, 1])
+def test_shells_touching_at_a_vertex_are_turned_outward_each(inward_shell):
+    p, first, second = _touching_spheres()
+    shells = [first, second]
+    shells[inward_shell] = shells[inward_shell][:, ::-1]
+    f = np.vstack(shells)
+    assert abs(signed_volume(p, f)) < 1e-9 * signed_volume(p, first)  # the two windings cancel
+    o = orient_faces(p, f)
+    assert o.n_components == 2  # connected through a vertex only: two components
+    n = len(first)
+    assert signed_volume(p, o.faces[:n]) > 0 and signed_volume(p, o.faces[n:]) > 0
+    expected = np.zeros(len(f), bool)
+    expected[inward_shell * n:(inward_shell + 1) * n] = True
+    np.testing.assert_array_equal(o.flipped, expected)
+    inward = orient_faces(p, f, mode="inward")
+    np.testing.assert_array_equal(inward.flipped, ~expected)
+
+
+def test_consistent_shells_of_opposite_windings_are_turned_outward_each():
+    a, b = icosphere(1.0, 2), icosphere(0.5, 2)
+    p = np.vstack([a.points, np.asarray(b.points) + [3.0, 0.0, 0.0]])
+    f = np.vstack([a.regular_faces[:, ::-1], b.regular_faces + a.n_points])  # first inward, second outward
+    o = orient_faces(p, f)
+    n = len(a.regular_faces)
+    assert o.n_components == 2
+    np.testing.assert_array_equal(o.flipped, np.arange(len(f)) < n)
+    assert signed_volume(p, o.faces[:n]) > 0 and signed_volume(p, o.faces[n:]) > 0
+
+
+@pytest.mark.parametrize("reverse", [False, True])
+def test_consistent_open_hemisphere_is_turned_to_face_out(reverse):
+    s = icosphere(1.0, 3)
+    p, f = np.asarray(s.points), s.regular_faces
+    cap = f[p[f].mean(axis=1)[:, 2] > 0.05]  # an open cap, its rim a hole
+    faces = cap[:, ::-1] if reverse else cap
+    o = orient_faces(p, faces)
+    assert o.n_flipped == (len(cap) if reverse else 0)
+    np.testing.assert_array_equal(o.faces, faces[:, [0, 2, 1]] if reverse else cap)  # a flip swaps the last two
+    normals = np.cross(p[o.faces[:, 1]] - p[o.faces[:, 0]], p[o.faces[:, 2]] - p[o.faces[:, 0]])
+    assert np.all(np.einsum("ij,ij->i", normals, p[o.faces].mean(axis=1)) > 0)  # away from the centre

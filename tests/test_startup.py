@@ -101,6 +101,26 @@ def test_stage_help_still_has_the_stage_options(capsys):
     assert "--orientation" in capsys.readouterr().out
 
 
+def test_cold_stage_starts_its_helper_before_parsing_and_help_starts_none(monkeypatch, tmp_path):
+    from pverosion import _precompile
+
+    calls = []
+
+    def start(stage):
+        calls.append((stage, _precompile._allowed))
+        return None
+
+    monkeypatch.setattr(_precompile, "start_helper_if_cold", start)
+    with pytest.raises(SystemExit):
+        main(["curvature", "--help"])
+    with pytest.raises(SystemExit):
+        main(["weather", "-h"])
+    assert calls == []
+    with pytest.raises(SystemExit):  # a bad option: the helper was asked for, then argparse stops the run
+        main(["curvature", str(tmp_path / "in.ply"), "-o", str(tmp_path / "out.vtp"), "--no-such-option"])
+    assert calls == [("curvature", True)]  # within helpers_allowed, before the arguments were parsed
+
+
 def test_allocator_settings_leave_the_users_settings():
     calls = []
 

@@ -64,13 +64,12 @@ class Orientation:
 
 
 @njit(cache=True, error_model="numpy")
-def _propagate(faces, partner):
-    n_faces = faces.shape[0]
-    flip = np.zeros(n_faces, np.bool_)
-    comp = np.full(n_faces, -1, np.int64)
-    stack = np.empty(n_faces, np.int64)
+def _propagate(faces, partner, flip, comp, stack):
+    """Make the faces (F, 3) consistent across the manifold edges (twins ``partner`` (3F,)): the faces to reverse
+    into ``flip`` (F,), False on entry, and the edge-connected component of each into ``comp`` (F,), -1 on entry;
+    ``stack`` (F,) is scratch. Returns the number of components."""
     n_comp = 0
-    for seed in range(n_faces):
+    for seed in range(faces.shape[0]):
         if comp[seed] >= 0:
             continue
         comp[seed] = n_comp
@@ -93,7 +92,7 @@ def _propagate(faces, partner):
                 stack[top] = g
                 top += 1
         n_comp += 1
-    return flip, comp
+    return n_comp
 
 
 @njit(cache=True, error_model="numpy")
@@ -140,18 +139,22 @@ def _find(parent, v):
 
 @njit(cache=True, error_model="numpy")
 def _centre_extent(points):
-    """Centroid of the points (V, 3) and their largest extent along an axis."""
-    origin = np.zeros(3)
-    lo = points[0].copy()
-    hi = points[0].copy()
+    """Centroid ``(x, y, z)`` of the points (V, 3) and their largest extent along an axis."""
+    sx = sy = sz = 0.0
+    lx, ly, lz = points[0, 0], points[0, 1], points[0, 2]
+    hx, hy, hz = lx, ly, lz
     for v in range(points.shape[0]):
-        for d in range(3):
-            x = points[v, d]
-            origin[d] += x
-            lo[d] = min(lo[d], x)
-            hi[d] = max(hi[d], x)
-    origin /= points.shape[0]
-    return origin, max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2])
+        x, y, z = points[v, 0], points[v, 1], points[v, 2]
+        sx += x
+        sy += y
+        sz += z
+        lx, hx = (x if x < lx else lx), (x if x > hx else hx)
+        ly, hy = (y if y < ly else ly), (y if y > hy else hy)
+        lz, hz = (z if z < lz else lz), (z if z > hz else hz)
+    n = points.shape[0]
+    ex, ey, ez = hx - lx, hy - ly, hz - lz
+    extent = ex if ex >= ey and ex >= ez else (ey if ey >= ez else ez)
+    return sx / n, sy / n, sz / n, extent
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -173,18 +176,17 @@ def _volume_chunk(points, faces, flip, component, others, origin, volume, rims, 
 
 
 @njit(cache=True, error_model="numpy")
-def _hole_cones(points, faces, flip, component, others, origin, volume):
-    """Add to ``volume`` (six times) the cone from the centroid of every hole's rim over the rim's edges."""
-    n_vertices = points.shape[0]
-    parent = np.arange(n_vertices)
+def _hole_cones(points, faces, flip, component, others, origin, volume, parent, centre, count):
+    """Add to ``volume`` (six times) the cone from the centroid of every hole's rim over the rim's edges.
+
+    Scratch: ``parent`` (V,) must be ``arange(V)``, ``centre`` (V, 3) and ``count`` (V,) zero.
+    """
     for h in range(others.shape[0]):
         if others[h] == 0:
             f, k = h // 3, h % 3
             ra = _find(parent, faces[f, k])
             rb = _find(parent, faces[f, (k + 1) % 3])
             parent[ra] = rb
-    centre = np.zeros((n_vertices, 3))
-    count = np.zeros(n_vertices)
     for h in range(others.shape[0]):
         if others[h] == 0:
             a = faces[h // 3, h % 3]
@@ -210,13 +212,16 @@ def _closed_volumes(points: np.ndarray, faces: np.ndarray, flip: np.ndarray, com
                     others: np.ndarray) -> tuple[np.ndarray, float]:
     """Signed volume of every component, with each hole closed by a cone to its rim's centroid, and the
     largest extent of the points along an axis."""
-    origin, extent = _centre_extent(points)
+    *centre, extent = _centre_extent(points)
+    origin = np.array(centre)
     chunks = np.zeros((CHUNKS, n_comp))
     rims = np.zeros(CHUNKS, np.int64)
     for_chunks(_volume_chunk, faces.shape[0], points, faces, flip, component, others, origin, chunks, rims)
     volume = chunks.sum(axis=0)
     if rims.any():
-        _hole_cones(points, faces, flip, component, others, origin, volume)
+        n_vertices = points.shape[0]
+        _hole_cones(points, faces, flip, component, others, origin, volume, np.arange(n_vertices),
+                    np.zeros((n_vertices, 3)), np.zeros(n_vertices))
     return volume / 6.0, extent
 
 
@@ -321,8 +326,9 @@ def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward
     if mode not in ("outward", "inward"):
         raise ValueError(f"orientation must be 'outward' or 'inward'; got {mode!r}")
     order, local, partner, others = sorted_twins(faces, len(points))
-    flip, component = _propagate(local, partner)
-    n_comp = int(component.max()) + 1
+    flip = np.zeros(len(local), np.bool_)
+    component = np.full(len(local), -1, np.int64)
+    n_comp = _propagate(local, partner, flip, component, np.empty(len(local), np.int64))
     volume, extent = _closed_volumes(points, local, flip, component, n_comp, others)
     decided = np.abs(volume) > 1e-9 * extent**3
     turn = decided & (volume < 0)

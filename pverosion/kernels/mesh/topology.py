@@ -66,35 +66,40 @@ class EdgeTopology:
 
 
 @njit(cache=True, error_model="numpy")
-def _group_halfedges(faces, n_vertices):
+def _group_halfedges(faces, start, fill, bucket_hi, bucket_half, edge_of_slot, edges, count, halfedge_edge):
+    """Group the half-edges that are not zero-length into undirected edges; returns the number of edges E.
+
+    The half-edges are bucketed by their smaller vertex (a counting sort, in face order: bucket ``v`` is
+    ``start[v]:start[v + 1]`` of ``bucket_hi``, the larger vertex, and ``bucket_half``, ``3 f + k``); those
+    of one bucket with the same larger vertex form one edge, numbered in order of first appearance, into
+    ``edges`` (E, 2), with its number of half-edges in ``count`` (E,); the edge of each half-edge goes to
+    ``halfedge_edge`` (3F,). ``start`` (V + 1,) must be zero, ``edge_of_slot`` and ``halfedge_edge`` ``-1``;
+    ``fill`` (V,) is scratch.
+    """
     n_faces = faces.shape[0]
-    # bucket every half-edge by its smaller vertex (counting sort)
-    start = np.zeros(n_vertices + 1, np.int64)
+    n_vertices = fill.shape[0]
     for f in range(n_faces):
         for k in range(3):
             a = faces[f, k]
             b = faces[f, (k + 1) % 3]
-            if a != b:
-                start[min(a, b) + 1] += 1
+            if a < b:
+                start[a + 1] += 1
+            elif b < a:
+                start[b + 1] += 1
     for v in range(n_vertices):
+        fill[v] = start[v]
         start[v + 1] += start[v]
-    n_half = start[n_vertices]
-    fill = start[:-1].copy()
-    bucket_hi = np.empty(n_half, np.int64)
-    bucket_half = np.empty(n_half, np.int64)
     for f in range(n_faces):
         for k in range(3):
             a = faces[f, k]
             b = faces[f, (k + 1) % 3]
-            if a != b:
-                lo = min(a, b)
-                bucket_hi[fill[lo]] = max(a, b)
-                bucket_half[fill[lo]] = 3 * f + k
-                fill[lo] += 1
-    # within a bucket, half-edges with the same larger vertex form one edge
-    edge_of_slot = np.full(n_half, -1, np.int64)
-    edges = np.empty((n_half, 2), np.int64)
-    count = np.zeros(n_half, np.int64)
+            if a == b:
+                continue
+            lo, hi = (a, b) if a < b else (b, a)
+            i = fill[lo]
+            bucket_hi[i] = hi
+            bucket_half[i] = 3 * f + k
+            fill[lo] = i + 1
     n_edges = 0
     for v in range(n_vertices):
         for i in range(start[v], start[v + 1]):
@@ -110,10 +115,9 @@ def _group_halfedges(faces, n_vertices):
             edges[n_edges, 0] = v
             edges[n_edges, 1] = bucket_hi[i]
             n_edges += 1
-    halfedge_edge = np.full(3 * n_faces, -1, np.int64)
-    for i in range(n_half):
+    for i in range(start[n_vertices]):
         halfedge_edge[bucket_half[i]] = edge_of_slot[i]
-    return halfedge_edge.reshape(n_faces, 3), edges[:n_edges].copy(), count[:n_edges].copy()
+    return n_edges
 
 
 def edge_topology(faces: np.ndarray, n_vertices: int) -> EdgeTopology:
@@ -130,8 +134,18 @@ def edge_topology(faces: np.ndarray, n_vertices: int) -> EdgeTopology:
     -------
     EdgeTopology
     """
-    halfedge_edge, edges, count = _group_halfedges(faces, int(n_vertices))
-    return EdgeTopology(edges=edges, halfedge_edge=halfedge_edge, face_count=count)
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    n_vertices = int(n_vertices)
+    n_faces = faces.shape[0]
+    n_half = 3 * n_faces  # at most
+    edges = np.empty((n_half, 2), np.int64)
+    count = np.empty(n_half, np.int64)
+    halfedge_edge = np.full(n_half, -1, np.int64)
+    n_edges = _group_halfedges(faces, np.zeros(n_vertices + 1, np.int64), np.empty(n_vertices, np.int64),
+                               np.empty(n_half, np.int64), np.empty(n_half, np.int64), np.full(n_half, -1, np.int64),
+                               edges, count, halfedge_edge)
+    return EdgeTopology(edges=edges[:n_edges].copy(), halfedge_edge=halfedge_edge.reshape(n_faces, 3),
+                        face_count=count[:n_edges].copy())
 
 
 @njit(cache=True, error_model="numpy")
@@ -184,36 +198,24 @@ def vertex_face_incidence(
 
 
 @njit(cache=True, error_model="numpy")
-def _order_by_min_vertex(faces, n_vertices):
-    start = np.zeros(n_vertices + 1, np.int64)
+def _sort_by_min_vertex(faces, start, order, rows):
+    """Stable counting sort of the faces by their smallest vertex into ``order`` (F,) and ``rows`` (F, 3);
+    ``start`` (V + 1,) must be zero."""
+    n_vertices = start.shape[0] - 1
     for f in range(faces.shape[0]):
-        start[min(faces[f, 0], faces[f, 1], faces[f, 2]) + 1] += 1
+        a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        lo = a0 if a0 < a1 else a1
+        start[(lo if lo < a2 else a2) + 1] += 1
     for v in range(n_vertices):
         start[v + 1] += start[v]
-    order = np.empty(faces.shape[0], np.int64)
     for f in range(faces.shape[0]):
-        lo = min(faces[f, 0], faces[f, 1], faces[f, 2])
-        order[start[lo]] = f
-        start[lo] += 1
-    return order
-
-
-@njit(cache=True, error_model="numpy")
-def _sort_by_min_vertex(faces, n_vertices):
-    start = np.zeros(n_vertices + 1, np.int64)
-    for f in range(faces.shape[0]):
-        start[min(faces[f, 0], faces[f, 1], faces[f, 2]) + 1] += 1
-    for v in range(n_vertices):
-        start[v + 1] += start[v]
-    order = np.empty(faces.shape[0], np.int64)
-    rows = np.empty_like(faces)
-    for f in range(faces.shape[0]):
-        lo = min(faces[f, 0], faces[f, 1], faces[f, 2])
+        a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        lo = a0 if a0 < a1 else a1
+        lo = lo if lo < a2 else a2
         i = start[lo]
         order[i] = f
-        rows[i, 0], rows[i, 1], rows[i, 2] = faces[f, 0], faces[f, 1], faces[f, 2]
-        start[lo] += 1
-    return order, rows
+        rows[i, 0], rows[i, 1], rows[i, 2] = a0, a1, a2
+        start[lo] = i + 1
 
 
 def locality_sorted(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
@@ -229,7 +231,11 @@ def locality_sorted(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.
     order : numpy.ndarray, shape (F,), int64
     sorted_faces : numpy.ndarray, shape (F, 3)
     """
-    return _sort_by_min_vertex(np.ascontiguousarray(faces), int(n_vertices))
+    faces = np.ascontiguousarray(faces)
+    order = np.empty(faces.shape[0], np.int64)
+    rows = np.empty_like(faces)
+    _sort_by_min_vertex(faces, np.zeros(int(n_vertices) + 1, np.int64), order, rows)
+    return order, rows
 
 
 def locality_order(faces: np.ndarray, n_vertices: int) -> np.ndarray:
@@ -250,7 +256,7 @@ def locality_order(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     numpy.ndarray, shape (F,), int64
         ``faces[order]`` is the sorted face array.
     """
-    return _order_by_min_vertex(faces, int(n_vertices))
+    return locality_sorted(faces, n_vertices)[0]
 
 
 @njit(cache=True, error_model="numpy")
@@ -293,26 +299,21 @@ def _count_parts(faces, bounds, lows, counts, start, stop):
     for p in range(start, stop):
         for f in range(bounds[p], bounds[p + 1]):
             a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
-            lows[p, min(a0, a1, a2)] += 1
+            lo = a0 if a0 < a1 else a1
+            lows[p, lo if lo < a2 else a2] += 1
             counts[p, a0] += 1
             counts[p, a1] += 1
             counts[p, a2] += 1
 
 
-@njit(cache=True, error_model="numpy")
-def _part_offsets(lows, counts):
-    """Turn the per-part counts of :func:`_count_parts` into the first sorted position of each part's faces per
-    smallest vertex and of its corners per vertex, in place; returns the corner ``indptr`` (V + 1,)."""
-    n_parts, n_vertices = lows.shape
-    indptr = np.empty(n_vertices + 1, np.int64)
-    low_pos = 0
-    corner_pos = 0
-    for v in range(n_vertices):
-        indptr[v] = corner_pos
-        for p in range(n_parts):
-            low_pos, lows[p, v] = low_pos + lows[p, v], low_pos
-            corner_pos, counts[p, v] = corner_pos + counts[p, v], corner_pos
-    indptr[n_vertices] = corner_pos
+def _part_offsets(lows: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Turn the per-part counts (P, V) of :func:`_count_parts` into the first sorted position of each part's faces
+    per smallest vertex and of its corners per vertex, in place; returns the corner offsets ``indptr`` (V + 1,)."""
+    indptr = np.zeros(counts.shape[1] + 1, np.int64)
+    np.cumsum(counts.sum(axis=0), out=indptr[1:])
+    for table in (lows, counts):  # exclusive running sums in vertex-major, part-minor order
+        flat = table.T.ravel()
+        table.T[...] = (np.cumsum(flat) - flat).reshape(table.shape[1], table.shape[0])
     return indptr
 
 
@@ -322,11 +323,13 @@ def _fill_parts(faces, bounds, lows, counts, order, rows, after, before, half, s
     for p in range(start, stop):
         fill = counts[p]
         for f in range(bounds[p], bounds[p + 1]):
-            lo = min(faces[f, 0], faces[f, 1], faces[f, 2])
+            a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
+            lo = a0 if a0 < a1 else a1
+            lo = lo if lo < a2 else a2
             i = lows[p, lo]
             lows[p, lo] += 1
             order[i] = f
-            rows[i, 0], rows[i, 1], rows[i, 2] = faces[f, 0], faces[f, 1], faces[f, 2]
+            rows[i, 0], rows[i, 1], rows[i, 2] = a0, a1, a2
             _put_corners(faces, f, 3 * i, fill, after, before, half)
 
 
@@ -474,21 +477,24 @@ def sorted_twins(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.nda
 
 
 @njit(cache=True, error_model="numpy")
-def _ring_csr(edges, n_vertices):
-    indptr = np.zeros(n_vertices + 1, np.int64)
+def _ring_rows(edges, indptr, indices):
+    """Fill the one-ring CSR ``indptr`` (V + 1,), zero on entry, and ``indices`` (2E,) from the edges (E, 2),
+    each row sorted."""
+    n_vertices = indptr.shape[0] - 1
     for e in range(edges.shape[0]):
         indptr[edges[e, 0] + 1] += 1
         indptr[edges[e, 1] + 1] += 1
     for v in range(n_vertices):
         indptr[v + 1] += indptr[v]
-    fill = indptr[:-1].copy()
-    indices = np.empty(indptr[n_vertices], np.int64)
-    for e in range(edges.shape[0]):
+    for e in range(edges.shape[0]):  # indptr[v] moves from the start to the end of row v, then back a row
         a, b = edges[e, 0], edges[e, 1]
-        indices[fill[a]] = b
-        fill[a] += 1
-        indices[fill[b]] = a
-        fill[b] += 1
+        indices[indptr[a]] = b
+        indptr[a] += 1
+        indices[indptr[b]] = a
+        indptr[b] += 1
+    for v in range(n_vertices, 0, -1):
+        indptr[v] = indptr[v - 1]
+    indptr[0] = 0
     for v in range(n_vertices):  # insertion sort of each (short) row
         for i in range(indptr[v] + 1, indptr[v + 1]):
             x = indices[i]
@@ -497,7 +503,6 @@ def _ring_csr(edges, n_vertices):
                 indices[j + 1] = indices[j]
                 j -= 1
             indices[j + 1] = x
-    return indptr, indices
 
 
 def one_ring(faces: np.ndarray, n_vertices: int, *, edges: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -519,7 +524,11 @@ def one_ring(faces: np.ndarray, n_vertices: int, *, edges: np.ndarray | None = N
     """
     if edges is None:
         edges = edge_topology(faces, n_vertices).edges
-    return _ring_csr(np.ascontiguousarray(edges, dtype=np.int64), int(n_vertices))
+    edges = np.ascontiguousarray(edges, dtype=np.int64)
+    indptr = np.zeros(int(n_vertices) + 1, np.int64)
+    indices = np.empty(2 * edges.shape[0], np.int64)
+    _ring_rows(edges, indptr, indices)
+    return indptr, indices
 
 
 def boundary_edges(faces: np.ndarray, n_vertices: int, topology: EdgeTopology | None = None) -> np.ndarray:
