@@ -448,8 +448,8 @@ class GuardedMeshSolver(SolverLoop):
     def _watch(self) -> bool:
         """Between the guard's checks, check the faces at the vertices it has slowed down or frozen against the
         faces near them, and roll back at once when they meet. False when the step was undone."""
-        if self.repair != "retry" or not self.check_every or self._baseline:
-            return True
+        if self.repair != "retry" or not self.check_every or self._baseline or not self.retries:
+            return True  # (only rollbacks slow vertices down)
         if self._watched is None:
             self._watched = self._watch_list()
         local, watched = self._watched
