@@ -263,7 +263,8 @@ def _entry_count_range(cell, ok, offset, start, stop):
     ``offset[f + 1]`` (0 for a degenerate face)."""
     for f in range(start, stop):
         if ok[f]:
-            offset[f + 1] = (cell[f, 3] - cell[f, 0] + 1) * (cell[f, 4] - cell[f, 1] + 1) * (cell[f, 5] - cell[f, 2] + 1)
+            offset[f + 1] = ((cell[f, 3] - cell[f, 0] + 1) * (cell[f, 4] - cell[f, 1] + 1)
+                             * (cell[f, 5] - cell[f, 2] + 1))
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
