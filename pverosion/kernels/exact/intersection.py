@@ -268,28 +268,25 @@ def _entry_count_range(cell, ok, offset, start, stop):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _entry_range(cell, ok, query, offset, size, bucket, key, face, flag, start, stop):
-    """The grid entries of faces ``start`` to ``stop``, from ``offset[f]`` on: bucket, packed cell key, face and
-    flags (bits 0-2: the cell is the face's lowest along x, y, z; bit 3: the face is queried)."""
+def _bucket_range(cell, ok, offset, size, bucket, start, stop):
+    """Buckets of the grid entries of faces ``start`` to ``stop`` (every cell their boxes cover, in x, y, z loop
+    order), from ``offset[f]`` on."""
     for f in range(start, stop):
         if not ok[f]:
             continue
         k = offset[f]
-        queried = 8 if query[f] else 0
-        x0, y0, z0, x1, y1, z1 = cell[f, 0], cell[f, 1], cell[f, 2], cell[f, 3], cell[f, 4], cell[f, 5]
-        for ix in range(x0, x1 + 1):
-            for iy in range(y0, y1 + 1):
-                for iz in range(z0, z1 + 1):
+        for ix in range(cell[f, 0], cell[f, 3] + 1):
+            for iy in range(cell[f, 1], cell[f, 4] + 1):
+                for iz in range(cell[f, 2], cell[f, 5] + 1):
                     bucket[k] = _hash(ix, iy, iz, size)
-                    key[k] = _key(ix, iy, iz)
-                    face[k] = f
-                    flag[k] = queried | (1 if ix == x0 else 0) | (2 if iy == y0 else 0) | (4 if iz == z0 else 0)
                     k += 1
 
 
 @njit(cache=True, error_model="numpy")
-def _bucket_sort(bucket, key, face, flag, size):
-    """Entries grouped by bucket (stable): bucket starts (size + 1,), faces, cell keys and flags."""
+def _bucket_fill(cell, ok, query, bucket, size):
+    """The grid entries grouped by bucket (``bucket``: each entry's, in face and loop order; stable): bucket starts
+    (size + 1,), faces, packed cell keys and flags (bits 0-2: the cell is the face's lowest along x, y, z; bit 3:
+    the face is queried)."""
     n = bucket.shape[0]
     start = np.zeros(size + 1, np.int64)
     for k in range(n):
@@ -300,12 +297,21 @@ def _bucket_sort(bucket, key, face, flag, size):
     entries = np.empty(n, np.int64)
     cells = np.empty(n, np.int64)
     flags = np.empty(n, np.int8)
-    for k in range(n):
-        i = fill[bucket[k]]
-        entries[i] = face[k]
-        cells[i] = key[k]
-        flags[i] = flag[k]
-        fill[bucket[k]] = i + 1
+    k = 0
+    for f in range(cell.shape[0]):
+        if not ok[f]:
+            continue
+        queried = 8 if query[f] else 0
+        x0, y0, z0, x1, y1, z1 = cell[f, 0], cell[f, 1], cell[f, 2], cell[f, 3], cell[f, 4], cell[f, 5]
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
+                for iz in range(z0, z1 + 1):
+                    i = fill[bucket[k]]
+                    entries[i] = f
+                    cells[i] = _key(ix, iy, iz)
+                    flags[i] = queried | (1 if ix == x0 else 0) | (2 if iy == y0 else 0) | (4 if iz == z0 else 0)
+                    fill[bucket[k]] = i + 1
+                    k += 1
     return start, entries, cells, flags
 
 
@@ -317,11 +323,9 @@ def _build_grid(cell: np.ndarray, ok: np.ndarray, query: np.ndarray, size: int) 
     offset = np.zeros(n + 1, np.int64)
     for_ranges(_entry_count_range, n, cell, ok, offset)
     np.cumsum(offset, out=offset)
-    total = int(offset[-1])
-    bucket, key, face = np.empty(total, np.int64), np.empty(total, np.int64), np.empty(total, np.int64)
-    flag = np.empty(total, np.int8)
-    for_ranges(_entry_range, n, cell, ok, query, offset, size, bucket, key, face, flag)
-    return _bucket_sort(bucket, key, face, flag, size)
+    bucket = np.empty(int(offset[-1]), np.int32 if size < 2**31 else np.int64)
+    for_ranges(_bucket_range, n, cell, ok, offset, size, bucket)  # the hashes, in parallel
+    return _bucket_fill(cell, ok, query, bucket, size)
 
 
 @njit(cache=True, error_model="numpy")
