@@ -32,7 +32,10 @@ again). The watch only rolls back: a state becomes the restart point only
 after the check of the whole mesh. Results differ from a guard without the
 watch (rollbacks come at other steps) but, like the check, do not depend on
 the number of threads. There is no watch on an input that already
-intersects itself, nor with ``repair="topology"``.
+intersects itself, nor with ``repair="topology"``, nor in a subclass that
+sets :attr:`GuardedMeshSolver.WATCH` to False (hydraulic erosion: there the
+water makes tangles that mostly come undone before the next check, and the
+watch would roll them back).
 
 Subclasses with more state than the mesh (a fluid, say) extend
 :meth:`GuardedMeshSolver._extra_state` and
@@ -174,6 +177,8 @@ class GuardedMeshSolver(SolverLoop):
     STAT_NAMES: ClassVar[tuple[str, ...]] = ()
     """Names of the per-step statistics (one row per step, step 0 first); rows come from :meth:`_row`."""
     PROGRESS_LABEL: ClassVar[str] = "steps"
+    WATCH: ClassVar[bool] = True
+    """Whether the guard watches the faces at slowed or frozen vertices between its checks (see the module)."""
     _curvature_estimator: ClassVar[type] = CurvatureOperator
     """Curvature of the current points, built per connectivity (:class:`CurvatureTracker` where few points move)."""
 
@@ -448,7 +453,7 @@ class GuardedMeshSolver(SolverLoop):
     def _watch(self) -> bool:
         """Between the guard's checks, check the faces at the vertices it has slowed down or frozen against the
         faces near them, and roll back at once when they meet. False when the step was undone."""
-        if self.repair != "retry" or not self.check_every or self._baseline or not self.retries:
+        if not self.WATCH or self.repair != "retry" or not self.check_every or self._baseline or not self.retries:
             return True  # (only rollbacks slow vertices down)
         if self._watched is None:
             self._watched = self._watch_list()
