@@ -334,3 +334,36 @@ def test_guard_queries_and_kept_connectivity_match_whole_rebuilds_over_a_run(bun
     solver = Checked(bunny.points, bunny.regular_faces, min_edge_ratio=0.25)
     solver.run(60)
     assert solver.collapses > 0 and solver.retries > 0 and solver.checks >= 6
+
+
+def test_guard_watch_rolls_back_between_checks_and_only_whole_checks_make_restart_points(bunny):
+    """On the scan's sharp crease the watch of the slowed vertices catches a tangle before the next check (a
+    rollback less than ``check_every`` steps after the restart point), every restart point has no intersecting
+    faces, and the run is the same with one thread and with all."""
+    import numba
+
+    class Recorded(WeatheringSolver):
+        def _set_clean(self):
+            assert not intersecting_faces(self.points, self.faces).any()
+            super()._set_clean()
+
+        def _roll_back(self, hits):
+            self.rolled.append(self.step_count - self._clean.step)
+            super()._roll_back(hits)
+
+    before = numba.get_num_threads()
+    runs = []
+    try:
+        for threads in sorted({1, numba.config.NUMBA_NUM_THREADS}):
+            numba.set_num_threads(threads)
+            solver = Recorded(bunny.points, bunny.regular_faces)
+            solver.rolled = []
+            solver.run(60)
+            runs.append(solver)
+    finally:
+        numba.set_num_threads(before)
+    solver = runs[0]
+    assert solver.rolled[0] == solver.check_every  # the first tangle is found by a check of the whole mesh
+    assert any(0 < gap < solver.check_every for gap in solver.rolled[1:])  # later ones by the watch
+    for other in runs[1:]:
+        assert other.rolled == solver.rolled and np.array_equal(other.points, solver.points)

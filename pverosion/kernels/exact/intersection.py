@@ -257,37 +257,75 @@ def _face_boxes(points: np.ndarray, faces: np.ndarray) -> tuple:
     return lo, hi, ok, keys, n_ok, cell
 
 
-@njit(cache=True, error_model="numpy")
-def _build_grid(cell, ok, size):
-    """Spatial hash: the faces covering each bucket's cells (ranges ``cell`` (F, 6)), with each entry's packed cell
-    key."""
-    n = cell.shape[0]
-    start = np.zeros(size + 1, np.int64)
-    for f in range(n):
+@njit(cache=True, error_model="numpy", nogil=True)
+def _entry_count_range(cell, ok, offset, start, stop):
+    """Number of grid cells covered by the boxes of faces ``start`` to ``stop`` (ranges ``cell``), in
+    ``offset[f + 1]`` (0 for a degenerate face)."""
+    for f in range(start, stop):
+        if ok[f]:
+            offset[f + 1] = ((cell[f, 3] - cell[f, 0] + 1) * (cell[f, 4] - cell[f, 1] + 1)
+                             * (cell[f, 5] - cell[f, 2] + 1))
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _bucket_range(cell, ok, offset, size, bucket, start, stop):
+    """Buckets of the grid entries of faces ``start`` to ``stop`` (every cell their boxes cover, in x, y, z loop
+    order), from ``offset[f]`` on."""
+    for f in range(start, stop):
         if not ok[f]:
             continue
-        x0, y0, z0, x1, y1, z1 = cell[f, 0], cell[f, 1], cell[f, 2], cell[f, 3], cell[f, 4], cell[f, 5]
-        for ix in range(x0, x1 + 1):
-            for iy in range(y0, y1 + 1):
-                for iz in range(z0, z1 + 1):
-                    start[_hash(ix, iy, iz, size) + 1] += 1
+        k = offset[f]
+        for ix in range(cell[f, 0], cell[f, 3] + 1):
+            for iy in range(cell[f, 1], cell[f, 4] + 1):
+                for iz in range(cell[f, 2], cell[f, 5] + 1):
+                    bucket[k] = _hash(ix, iy, iz, size)
+                    k += 1
+
+
+@njit(cache=True, error_model="numpy")
+def _bucket_fill(cell, ok, query, bucket, size):
+    """The grid entries grouped by bucket (``bucket``: each entry's, in face and loop order; stable): bucket starts
+    (size + 1,), faces, packed cell keys and flags (bits 0-2: the cell is the face's lowest along x, y, z; bit 3:
+    the face is queried)."""
+    n = bucket.shape[0]
+    start = np.zeros(size + 1, np.int64)
+    for k in range(n):
+        start[bucket[k] + 1] += 1
     for b in range(size):
         start[b + 1] += start[b]
-    entries = np.empty(start[size], np.int64)
-    cells = np.empty(start[size], np.int64)
     fill = start[:-1].copy()
-    for f in range(n):
+    entries = np.empty(n, np.int64)
+    cells = np.empty(n, np.int64)
+    flags = np.empty(n, np.int8)
+    k = 0
+    for f in range(cell.shape[0]):
         if not ok[f]:
             continue
+        queried = 8 if query[f] else 0
         x0, y0, z0, x1, y1, z1 = cell[f, 0], cell[f, 1], cell[f, 2], cell[f, 3], cell[f, 4], cell[f, 5]
         for ix in range(x0, x1 + 1):
             for iy in range(y0, y1 + 1):
                 for iz in range(z0, z1 + 1):
-                    b = _hash(ix, iy, iz, size)
-                    entries[fill[b]] = f
-                    cells[fill[b]] = _key(ix, iy, iz)
-                    fill[b] += 1
-    return start, entries, cells
+                    i = fill[bucket[k]]
+                    entries[i] = f
+                    cells[i] = _key(ix, iy, iz)
+                    flags[i] = queried | (1 if ix == x0 else 0) | (2 if iy == y0 else 0) | (4 if iz == z0 else 0)
+                    fill[bucket[k]] = i + 1
+                    k += 1
+    return start, entries, cells, flags
+
+
+def _build_grid(cell: np.ndarray, ok: np.ndarray, query: np.ndarray, size: int) -> tuple:
+    """Spatial hash of ``size`` buckets: the non-degenerate faces covering each bucket's cells (ranges ``cell``
+    (F, 6)), in face order, with each entry's packed cell key and flags (bits 0-2: the cell is the face's
+    lowest along x, y, z; bit 3: ``query`` (F,) holds for the face)."""
+    n = cell.shape[0]
+    offset = np.zeros(n + 1, np.int64)
+    for_ranges(_entry_count_range, n, cell, ok, offset)
+    np.cumsum(offset, out=offset)
+    bucket = np.empty(int(offset[-1]), np.int32 if size < 2**31 else np.int64)
+    for_ranges(_bucket_range, n, cell, ok, offset, size, bucket)  # the hashes, in parallel
+    return _bucket_fill(cell, ok, query, bucket, size)
 
 
 @njit(cache=True, error_model="numpy")
@@ -301,30 +339,25 @@ def _shared_vertices(faces, f, g):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _hits_range(points, faces, lo, hi, query, low, start, entries, cells, hits, first, last):
+def _hits_range(points, faces, lo, hi, start, entries, cells, flags, hits, first, last):
     """Flag in ``hits`` the faces that meet a non-adjacent face, testing the pairs with a queried face in the
-    cells of buckets ``first`` to ``last``, each pair in the first cell both boxes cover (lowest cell of every
-    face: ``low[:, :3]``); both faces of a hit are flagged, another range may flag the same face, with the
-    same value."""
-    mask = (1 << 21) - 1
+    cells of buckets ``first`` to ``last``, each pair in the first cell both boxes cover (the cell where, along
+    every axis, one of the two is lowest: the entries' flags together have all four bits); both faces of a hit
+    are flagged, another range may flag the same face, with the same value."""
     for b in range(first, last):
         for i in range(start[b], start[b + 1] - 1):
-            f = entries[i]
             key = cells[i]
-            ix, iy, iz = key >> 42, (key >> 21) & mask, key & mask
-            f_low = (low[f, 0], low[f, 1], low[f, 2])
-            f_lo = (lo[f, 0], lo[f, 1], lo[f, 2])
-            f_hi = (hi[f, 0], hi[f, 1], hi[f, 2])
-            a, b_, c = faces[f, 0], faces[f, 1], faces[f, 2]
-            f_queried = query[f]
+            f_flags = flags[i]
+            f = -1
             for j in range(i + 1, start[b + 1]):
-                if cells[j] != key:
-                    continue  # another cell hashed here
+                if cells[j] != key or (f_flags | flags[j]) != 15:
+                    continue  # another cell hashed here, the pair meets in an earlier cell, or neither is queried
+                if f < 0:  # the face's box and corners, read once a pair needs them
+                    f = entries[i]
+                    f_lo = (lo[f, 0], lo[f, 1], lo[f, 2])
+                    f_hi = (hi[f, 0], hi[f, 1], hi[f, 2])
+                    a, b_, c = faces[f, 0], faces[f, 1], faces[f, 2]
                 g = entries[j]
-                if not (f_queried or query[g]):
-                    continue
-                if max(f_low[0], low[g, 0]) != ix or max(f_low[1], low[g, 1]) != iy or max(f_low[2], low[g, 2]) != iz:
-                    continue  # the pair meets in an earlier cell
                 if (f_lo[0] > hi[g, 0] or lo[g, 0] > f_hi[0] or f_lo[1] > hi[g, 1] or lo[g, 1] > f_hi[1]
                         or f_lo[2] > hi[g, 2] or lo[g, 2] > f_hi[2]):
                     continue  # boxes apart
@@ -337,13 +370,12 @@ def _hits_range(points, faces, lo, hi, query, low, start, entries, cells, hits, 
                     hits[g] = True  # same value from any thread: a benign race
 
 
-def _count_hits(points, faces, lo, hi, ok, query, cell, start, entries, cells, size) -> np.ndarray:
+def _count_hits(points, faces, lo, hi, grid, size) -> np.ndarray:
     """Flag the faces that meet a non-adjacent face, testing the pairs with a queried face once (per cell of
-    the grid, so each pair of faces in a cell is met once rather than from both faces); ``cell`` (F, 6): the
-    grid cells every box covers, the lowest first."""
+    the grid, so each pair of faces in a cell is met once rather than from both faces); ``grid``: what
+    :func:`_build_grid` returned."""
     hits = np.zeros(faces.shape[0], np.bool_)
-    for_ranges(_hits_range, size, points, faces, lo, hi, query & ok, cell, start, entries, cells, hits,
-               min_items=HEAVY_ITEMS_PER_RANGE)
+    for_ranges(_hits_range, size, points, faces, lo, hi, *grid, hits, min_items=HEAVY_ITEMS_PER_RANGE)
     return hits
 
 
@@ -616,7 +648,7 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     if n_ok == 0:
         return np.zeros((0, 2), np.int64)
     size = 4 * n_ok + 1
-    start, entries, cells = _build_grid(cell, ok, size)
+    start, entries, cells, _ = _build_grid(cell, ok, ok, size)
     return _box_pairs(pts, fcs, _face_planes(pts, fcs), lo, hi, ok, grp, wanted, cell, start, entries,
                       cells, size)
 
@@ -680,8 +712,8 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
     if n_ok == 0:
         return hits
     size = 4 * n_ok + 1
-    grid = _build_grid(cell, ok, size)
-    hits[order] = _count_hits(pts, local, lo, hi, ok, local_query, cell, *grid, size)
+    grid = _build_grid(cell, ok, local_query, size)
+    hits[order] = _count_hits(pts, local, lo, hi, grid, size)
     return hits
 
 

@@ -19,7 +19,25 @@ where the mesh tangled instead of everywhere, so the rest of the model keeps
 its pace). The halving is kept for the rest of the run; a vertex halved more
 than ``max_halvings`` times is frozen (it stops moving and is never
 collapsed). ``retries`` counts the rollbacks, ``frozen`` the frozen
-vertices. Subclasses with more state than the mesh (a fluid, say) extend
+vertices.
+
+Between two checks the guard watches the places where it rolled back: at
+every step, the faces at a slowed or frozen vertex are tested against the
+faces near them (those with a vertex in the watched faces' box widened by
+three times their largest box side, as measured after the last rollback or
+edge collapse), and when they meet the solver rolls back at once, halving
+around the faces found, instead of running the steps left to the next check
+and testing the whole mesh (a region that tangled once tends to tangle
+again). The watch only rolls back: a state becomes the restart point only
+after the check of the whole mesh. Results differ from a guard without the
+watch (rollbacks come at other steps) but, like the check, do not depend on
+the number of threads. There is no watch on an input that already
+intersects itself, nor with ``repair="topology"``, nor in a subclass that
+sets :attr:`GuardedMeshSolver.WATCH` to False (hydraulic erosion: there the
+water makes tangles that mostly come undone before the next check, and the
+watch would roll them back).
+
+Subclasses with more state than the mesh (a fluid, say) extend
 :meth:`GuardedMeshSolver._extra_state` and
 :meth:`GuardedMeshSolver._restore_extra`, so a rollback replays the same
 steps bit for bit.
@@ -159,6 +177,8 @@ class GuardedMeshSolver(SolverLoop):
     STAT_NAMES: ClassVar[tuple[str, ...]] = ()
     """Names of the per-step statistics (one row per step, step 0 first); rows come from :meth:`_row`."""
     PROGRESS_LABEL: ClassVar[str] = "steps"
+    WATCH: ClassVar[bool] = True
+    """Whether the guard watches the faces at slowed or frozen vertices between its checks (see the module)."""
     _curvature_estimator: ClassVar[type] = CurvatureOperator
     """Curvature of the current points, built per connectivity (:class:`CurvatureTracker` where few points move)."""
 
@@ -254,6 +274,7 @@ class GuardedMeshSolver(SolverLoop):
     def _build_topology(self) -> None:
         """Everything that depends on the faces only; after edge collapses (``_collapsed``), updated from before."""
         n = len(self.points)
+        self._watched = None  # faces the guard watches between its checks, found on first use
         self._curvature = self._curvature_estimator(self.faces, n)
         if self._collapsed is None:
             self._topology = CollapseTopology.build(self.faces, n)
@@ -371,7 +392,9 @@ class GuardedMeshSolver(SolverLoop):
 
     def _advance(self, checkpoint: bool) -> bool:
         self._step()
-        return not (self._due(checkpoint) and not self._accept())
+        if self._due(checkpoint):
+            return self._accept()
+        return self._watch()
 
     @property
     def state(self) -> dict[str, np.ndarray]:
@@ -403,7 +426,12 @@ class GuardedMeshSolver(SolverLoop):
             else:
                 self._set_clean()
                 return True
-        # halve the steps of the tangled faces' vertices and their two-ring neighbourhood
+        self._roll_back(hits)
+        return False
+
+    def _roll_back(self, hits: np.ndarray) -> None:
+        """Restore the restart point after halving the steps of the vertices of the faces ``hits`` (F,) and of their
+        two-ring neighbourhood."""
         near = np.zeros(len(self.points))
         near[self.faces[hits].ravel()] = 1.0
         ring_ptr, ring_idx = self._ring
@@ -419,8 +447,41 @@ class GuardedMeshSolver(SolverLoop):
         self._scale[ids] *= 0.5
         self._scale[self._scale < 0.5**self.max_halvings] = 0.0
         self.retries += 1
+        self._watched = None
         self._restore(self._clean)
+
+    def _watch(self) -> bool:
+        """Between the guard's checks, check the faces at the vertices it has slowed down or frozen against the
+        faces near them, and roll back at once when they meet. False when the step was undone."""
+        if not self.WATCH or self.repair != "retry" or not self.check_every or self._baseline or not self.retries:
+            return True  # (only rollbacks slow vertices down)
+        if self._watched is None:
+            self._watched = self._watch_list()
+        local, watched = self._watched
+        if not watched.any():
+            return True
+        clock = time.perf_counter()
+        found = intersecting_faces(self.points, self.faces[local], query=watched)
+        self._lap("watch", clock)
+        if not found.any():
+            return True
+        hits = np.zeros(len(self.faces), bool)
+        hits[local[found]] = True
+        self._roll_back(hits)
         return False
+
+    def _watch_list(self) -> tuple[np.ndarray, np.ndarray]:
+        """The faces :meth:`_watch` checks (K,) and which of them are at a slowed or frozen vertex (K,): those and
+        the faces with a vertex in their box, widened by three times the largest box side among them."""
+        watched = (self._scale[self.ids] < 1.0)[self.faces].any(axis=1)
+        if not watched.any():
+            return np.zeros(0, np.int64), np.zeros(0, bool)
+        corners = self.points[self.faces[watched]]
+        reach = 3.0 * float(np.ptp(corners, axis=1).max())
+        low, high = corners.min(axis=(0, 1)) - reach, corners.max(axis=(0, 1)) + reach
+        near = np.all((self.points >= low) & (self.points <= high), axis=1)[self.faces].any(axis=1)
+        local = np.flatnonzero(near | watched)
+        return local, watched[local]
 
     def _repair_topology(self) -> None:
         """Cut the mesh along its intersection curves and keep the boundary of winding number >= 1."""
