@@ -154,3 +154,14 @@ def test_orientation_of_a_shuffled_mesh_follows_the_permutation(bumpy):
     original = orient_faces(points[rank], perm[flipped])
     assert np.array_equal(shuffled.flipped, original.flipped)
     assert np.array_equal(perm[shuffled.faces], original.faces)
+
+
+def test_operator_results_are_not_overwritten_by_later_calls(bumpy):
+    points, faces, _ = bumpy
+    op = CurvatureOperator(faces, len(points))
+    first = op(points)
+    kept = {name: value.copy() for name, value in _fields(first).items()}
+    op(points * 1.5)
+    op(points, normals=-first.normals)
+    for name, value in _fields(first).items():
+        assert np.array_equal(value, kept[name]), name

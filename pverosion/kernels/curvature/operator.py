@@ -17,8 +17,9 @@ from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range, chunk_total
+from pverosion.kernels._scratch import scratch_arrays
 from pverosion.kernels._threads import for_chunks, for_ranges
-from pverosion.kernels.mesh.geometry import face_normal_terms, mixed_corner_areas, vertex_normals
+from pverosion.kernels.mesh.geometry import face_normal_terms, mixed_corner_areas
 from pverosion.kernels.mesh.locality import Renumbering, morton_renumbering, poor_locality
 from pverosion.kernels.mesh.topology import locality_sorted, vertex_face_incidence
 from pverosion.kernels.validation import InvalidMeshError, as_faces, as_points
@@ -75,19 +76,44 @@ def _normal_frame(normal):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _frame_range(normals, tangents, start, stop):
+def _tangent_range(normals, tangents, start, stop):
     """First tangent of the :func:`_normal_frame` of vertices ``start`` to ``stop``; zero where the normal is."""
     for i in range(start, stop):
         nrm = v3.row(normals, i)
-        if v3.dot(nrm, nrm) != 0.0:
+        v3.store(tangents, i, _normal_frame(nrm)[0] if v3.dot(nrm, nrm) != 0.0 else (0.0, 0.0, 0.0))
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _normal_chunk(points, faces, acc, c):
+    """Zero ``acc[c]`` (V, 4) and add the Max-weighted normals of chunk ``c`` of the faces to their corners
+    in ``acc[c, :, :3]``, as :func:`~pverosion.kernels.mesh.geometry.vertex_normals` does."""
+    acc[c] = 0.0
+    start, stop = chunk_range(faces.shape[0], c)
+    for f in range(start, stop):
+        ok, n, w0, w1, w2 = face_normal_terms(points, faces, f, True)
+        if not ok:
+            continue
+        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        for d in range(3):
+            acc[c, i0, d] += w0 * n[d]
+            acc[c, i1, d] += w1 * n[d]
+            acc[c, i2, d] += w2 * n[d]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _frame_range(acc, normals, tangents, start, stop):
+    """Unit normals (the chunk sums of ``acc[:, :, :3]``) and first frame tangents of vertices ``start`` to
+    ``stop``; both zero where the sum is."""
+    for i in range(start, stop):
+        total = (chunk_total(acc, i, 0), chunk_total(acc, i, 1), chunk_total(acc, i, 2))
+        length = v3.norm(total)
+        if length > 0.0:
+            nrm = v3.scale(total, 1.0 / length)
+            v3.store(normals, i, nrm)
             v3.store(tangents, i, _normal_frame(nrm)[0])
-
-
-def _vertex_tangents(normals: np.ndarray) -> np.ndarray:
-    """The tangent ``u`` (V, 3) of every vertex frame; the frame is (u, normal x u, normal)."""
-    tangents = np.zeros_like(normals)
-    for_ranges(_frame_range, normals.shape[0], normals, tangents)
-    return tangents
+        else:
+            v3.store(normals, i, (0.0, 0.0, 0.0))
+            v3.store(tangents, i, (0.0, 0.0, 0.0))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -159,7 +185,7 @@ def _face_corners(points, faces, normals, tangents, f):
     """Corner areas (w0, w1, w2) of face ``f`` and its tensor in the frames of its three vertices.
 
     ``tangents`` holds the first tangent of each vertex frame
-    (:func:`_vertex_tangents`). Returns ``(w0, w1, w2, t0, t1, t2)`` with each
+    (:func:`_frame_range`). Returns ``(w0, w1, w2, t0, t1, t2)`` with each
     ``t_k = (ku, kuv, kv)``; a degenerate face keeps its (zero) areas and has
     zero tensors.
     """
@@ -194,23 +220,15 @@ def _add_corner(acc, c, i, w, tensor):
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def _tensor_chunk(points, faces, normals, tangents, acc, c):
-    """Add the corner-area-weighted face tensors of chunk ``c`` of the faces, in the vertex frames, and the
-    weights into ``acc[c]``, which holds (ku, kuv, kv, w) per vertex."""
+    """Zero ``acc[c]`` and add the corner-area-weighted face tensors of chunk ``c`` of the faces, in the vertex
+    frames, and the weights into it: (ku, kuv, kv, w) per vertex."""
+    acc[c] = 0.0
     start, stop = chunk_range(faces.shape[0], c)
     for f in range(start, stop):
         w0, w1, w2, t0, t1, t2 = _face_corners(points, faces, normals, tangents, f)
         _add_corner(acc, c, faces[f, 0], w0, t0)
         _add_corner(acc, c, faces[f, 1], w1, t1)
         _add_corner(acc, c, faces[f, 2], w2, t2)
-
-
-def _vertex_tensors(points: np.ndarray, faces: np.ndarray, normals: np.ndarray,
-                    tangents: np.ndarray) -> np.ndarray:
-    """Per chunk of faces, the corner-area-weighted sums of the face tensors in the
-    vertex frames, and the weight sums: shape (CHUNKS, V, 4) holding (ku, kuv, kv, w)."""
-    acc = np.zeros((CHUNKS, points.shape[0], 4))
-    for_chunks(_tensor_chunk, faces.shape[0], points, faces, normals, tangents, acc)
-    return acc
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -461,8 +479,12 @@ class CurvatureOperator:
     curve of its points (:func:`~pverosion.kernels.mesh.locality.morton_renumbering`);
     every call then evaluates in that numbering and returns the results in
     the caller's vertex order. Results are bit-identical whatever the number
-    of threads. Use it when the points move but the faces stay (iterative
-    erosion), or call :func:`principal_curvatures` for one shot.
+    of threads. The scratch arrays of a call (about 200 bytes per vertex, in
+    huge pages, see :func:`~pverosion.kernels._scratch.scratch_arrays`) are
+    kept for the next one, so one operator serves one thread at a time; the
+    returned arrays are always fresh. Use it when the points move but the
+    faces stay (iterative erosion), or call :func:`principal_curvatures` for
+    one shot.
 
     Parameters
     ----------
@@ -500,6 +522,7 @@ class CurvatureOperator:
         self.renumbering: Renumbering | None = None
         self._scattered = fcs if poor_locality(fcs, n_vertices) else None
         self.faces = None if self._scattered is not None else locality_sorted(fcs, n_vertices)[1]
+        self._scratch: tuple | None = None
 
     @classmethod
     def from_sorted(cls, faces: np.ndarray, n_vertices: int, *,
@@ -523,6 +546,7 @@ class CurvatureOperator:
         operator.renumbering = renumbering
         operator._scattered = None
         operator.faces = faces
+        operator._scratch = None
         return operator
 
     def __call__(self, points, *, normals=None) -> CurvatureResult:
@@ -544,14 +568,30 @@ class CurvatureOperator:
             self.faces = self.renumbering.sorted_faces(self._scattered)
             self._scattered = None
         ren = self.renumbering
+        local_points, local_normals, tangents, acc = self._buffers()
         if ren is not None:
-            pts = ren.to_local(pts)
-            nrm = None if nrm is None else ren.to_local(nrm)
+            pts = ren.to_local(pts, out=local_points)
+            nrm = None if nrm is None else ren.to_local(nrm, out=local_normals)
+        n_faces = self.faces.shape[0]
         if nrm is None:
-            nrm = vertex_normals(pts, self.faces, weighting="max")
-        tangents = _vertex_tangents(nrm)
-        acc = _vertex_tensors(pts, self.faces, nrm, tangents)
+            nrm = local_normals if ren is not None else np.empty((self.n_vertices, 3))
+            for_chunks(_normal_chunk, n_faces, pts, self.faces, acc)
+            for_ranges(_frame_range, self.n_vertices, acc, nrm, tangents)
+        else:
+            for_ranges(_tangent_range, self.n_vertices, nrm, tangents)
+        for_chunks(_tensor_chunk, n_faces, pts, self.faces, nrm, tangents, acc)
         return _vertex_curvatures(nrm, tangents, acc, None if ren is None else ren.order)
+
+    def _buffers(self) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray, np.ndarray]:
+        """The scratch arrays of a call, made by the first and reused by the next ones: the points and
+        normals in the local numbering (None without a renumbering), the frame tangents (V, 3) and the
+        per-chunk sums (CHUNKS, V, 4)."""
+        if self._scratch is None:
+            n = self.n_vertices
+            local = self.renumbering is not None
+            arrays = scratch_arrays(*([((n, 3), np.float64)] * (3 if local else 1)), ((CHUNKS, n, 4), np.float64))
+            self._scratch = (arrays[0], arrays[1], arrays[2], arrays[3]) if local else (None, None, *arrays)
+        return self._scratch
 
 
 def principal_curvatures(points, faces, *, normals=None) -> CurvatureResult:
