@@ -30,6 +30,7 @@ from numba import njit
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._threads import for_ranges
 from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS, normalize_symmetric
+from pverosion.kernels.curvature.operator import MeanCurvatureOperator
 from pverosion.kernels.materials.erodibility import Erodibility, check_erodibility, erodibility_now
 from pverosion.kernels.mesh.geometry import average_edge_length
 from pverosion.kernels.mesh.laplacian import laplacian_vectors
@@ -141,6 +142,7 @@ class WeatheringSolver(GuardedMeshSolver):
 
     STAT_NAMES = STAT_NAMES
     PROGRESS_LABEL = "weathering"
+    _curvature_estimator = MeanCurvatureOperator  # a step needs H (and the normals), not the directions
 
     def __init__(
         self,
