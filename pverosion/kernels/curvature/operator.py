@@ -356,15 +356,13 @@ def _vertex_curvatures(normals: np.ndarray, tangents: np.ndarray, acc: np.ndarra
     the result is returned; None keeps the numbering.
     """
     n_vertices = normals.shape[0]
-    # fresh arrays for the caller, in one huge-page map when large (see :mod:`pverosion.kernels._scratch`)
-    scalar, vector = ((n_vertices,), np.float64), ((n_vertices, 3), np.float64)
-    arrays = scratch_arrays(scalar, scalar, scalar, vector, vector, *(() if order is None else (vector,)))
-    k1, k2, area, d1, d2 = arrays[:5]
+    k1, k2, area = np.empty(n_vertices), np.empty(n_vertices), np.empty(n_vertices)
+    d1, d2 = np.empty((n_vertices, 3)), np.empty((n_vertices, 3))
     if order is None:
         normals_out = normals
         for_ranges(_curvature_range, n_vertices, normals, tangents, acc, k1, k2, d1, d2, area)
     else:
-        normals_out = arrays[5]
+        normals_out = np.empty_like(normals)
         for_ranges(_restored_curvature_range, n_vertices, normals, tangents, acc, order, k1, k2, d1, d2, area,
                    normals_out)
     return CurvatureResult(k1=k1, k2=k2, direction1=d1, direction2=d2, normals=normals_out, point_areas=area)

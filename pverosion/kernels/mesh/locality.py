@@ -23,7 +23,6 @@ import numpy as np
 from numba import njit
 
 from pverosion.kernels._scatter import CHUNKS, chunk_range
-from pverosion.kernels._scratch import scratch_arrays
 from pverosion.kernels._threads import for_chunks, for_ranges
 
 __all__ = ["LOCAL_SPAN", "MORTON_BITS", "Renumbering", "locality_renumbering", "morton_renumbering",
@@ -44,9 +43,6 @@ _RADIX_BITS = 15
 """Bits of the codes sorted per counting-sort pass (two passes of 2^15 buckets)."""
 
 _RADIX = 1 << _RADIX_BITS
-
-_DIGIT_PASSES = -(-3 * MORTON_BITS // _RADIX_BITS)
-"""Counting-sort passes over the codes."""
 
 
 @njit(cache=True, error_model="numpy")
@@ -151,12 +147,6 @@ def _place_chunk(codes, sequence, shift, slots, out, c):
 
 
 @njit(cache=True, nogil=True)
-def _iota_range(out, start, stop):
-    for i in range(start, stop):
-        out[i] = i
-
-
-@njit(cache=True, nogil=True)
 def _rank_range(order, rank, start, stop):
     for i in range(start, stop):
         rank[order[i]] = i
@@ -170,14 +160,15 @@ def _map_faces(faces, rank, out, start, stop):
 
 
 @njit(cache=True, error_model="numpy")
-def _renumbered_sorted(faces, rank, start, out):
-    """``rank[faces]`` sorted by smallest vertex (a stable counting sort) into ``out`` (F, 3), without the
-    unsorted copy; ``start`` (V + 1,) is zeroed scratch."""
+def _renumbered_sorted(faces, rank):
+    """``rank[faces]`` sorted by smallest vertex (a stable counting sort), without the unsorted copy."""
     n_vertices = rank.shape[0]
+    start = np.zeros(n_vertices + 1, np.int64)
     for f in range(faces.shape[0]):
         start[min(rank[faces[f, 0]], rank[faces[f, 1]], rank[faces[f, 2]]) + 1] += 1
     for v in range(n_vertices):
         start[v + 1] += start[v]
+    out = np.empty_like(faces)
     for f in range(faces.shape[0]):
         a, b, c = rank[faces[f, 0]], rank[faces[f, 1]], rank[faces[f, 2]]
         lo = min(a, b, c)
@@ -253,10 +244,7 @@ class Renumbering:
         -------
         numpy.ndarray, shape (F, 3), int64
         """
-        fcs = np.ascontiguousarray(faces, dtype=np.int64)
-        (out,), (start,) = scratch_arrays((fcs.shape, np.int64)), scratch_arrays(((len(self.rank) + 1,), np.int64))
-        _renumbered_sorted(fcs, self.rank, start, out)
-        return out
+        return _renumbered_sorted(np.ascontiguousarray(faces, dtype=np.int64), self.rank)
 
 
 def morton_renumbering(points: np.ndarray) -> Renumbering:
@@ -281,19 +269,15 @@ def morton_renumbering(points: np.ndarray) -> Renumbering:
     lo, hi = box[filled, 0].min(axis=0), box[filled, 1].max(axis=0)
     extent = hi - lo
     scale = np.where(extent > 0.0, ((1 << MORTON_BITS) - 1) / np.where(extent > 0.0, extent, 1.0), 0.0)
-    # the codes and the spare sequence are scratch; order and rank (kept by the caller) get a map of their own
-    codes, spare = scratch_arrays(((n,), np.int64), ((n,), np.int64))
-    order, rank = scratch_arrays(((n,), np.int64), ((n,), np.int64))
+    codes = np.empty(n, np.int64)
     for_chunks(_code_chunk, n, pts, lo, scale, codes)
-    for_ranges(_iota_range, n, order)
-    for shift in range(0, _DIGIT_PASSES * _RADIX_BITS, _RADIX_BITS):  # least significant digit first: stable
+    order, spare = np.arange(n), np.empty(n, np.int64)
+    for shift in range(0, 3 * MORTON_BITS, _RADIX_BITS):  # least significant digit first: stable
         counts = np.zeros((CHUNKS, _RADIX), np.int64)
         for_chunks(_count_chunk, n, codes, order, shift, counts)
         for_chunks(_place_chunk, n, codes, order, shift, _offsets(counts), spare)
         order, spare = spare, order
-    if _DIGIT_PASSES % 2:  # the sorted sequence ended in the scratch array
-        spare[:] = order
-        order = spare
+    rank = np.empty(n, np.int64)
     for_ranges(_rank_range, n, order, rank)
     return Renumbering(order, rank)
 
