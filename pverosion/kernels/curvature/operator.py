@@ -696,10 +696,8 @@ class MeanCurvatureOperator(CurvatureOperator):
         for_chunks(_trace_chunk, self.faces.shape[0], pts, self.faces, nrm, acc)
         n = self.n_vertices
         ren = self.renumbering
-        scalar, vector = ((n,), np.float64), ((n, 3), np.float64)
-        arrays = scratch_arrays(scalar, scalar, *(() if ren is None else (vector,)))
-        mean, area = arrays[:2]
-        normals_out = nrm if ren is None else arrays[2]
+        mean, area = np.empty(n), np.empty(n)
+        normals_out = nrm if ren is None else np.empty((n, 3))
         order = np.arange(n) if ren is None else ren.order
         for_ranges(_mean_range, n, nrm, acc, order, mean, area, normals_out)
         return MeanCurvatureResult(mean=mean, normals=normals_out, point_areas=area)
