@@ -10,8 +10,8 @@ anonymous memory map aligned to 2 MB and advised for transparent huge pages
 (``MADV_HUGEPAGE``), which faults in 512 times fewer pages; owners that call a
 kernel repeatedly keep the arrays and reuse them.
 
-Small requests, and systems without ``MADV_HUGEPAGE``, get ordinary zeroed
-NumPy arrays.
+Requests below :data:`MIN_MAPPED_BYTES`, and systems without
+``MADV_HUGEPAGE``, get ordinary zeroed NumPy arrays.
 """
 
 from __future__ import annotations
@@ -25,8 +25,10 @@ __all__ = ["HUGE_PAGE", "MIN_MAPPED_BYTES", "scratch_arrays"]
 HUGE_PAGE = 2 << 20
 """Alignment of the map and size of a transparent huge page on x86_64 and arm64 (bytes)."""
 
-MIN_MAPPED_BYTES = 8 << 20
-"""Smallest total size served by a memory map; smaller requests come from the heap."""
+MIN_MAPPED_BYTES = 32 << 20
+"""Smallest total size served by a memory map. Smaller requests come from the heap, which under the
+allocator settings of :mod:`pverosion._runtime` (arrays up to 32 MB from the heap, up to 64 MB of freed
+memory kept at its top) is not trimmed for them, so their pages stay mapped between calls."""
 
 _ALIGN = 64
 """Alignment of every array inside the map (a cache line)."""
