@@ -532,9 +532,9 @@ class CurvatureOperator:
     curve of its points (:func:`~pverosion.kernels.mesh.locality.morton_renumbering`);
     every call then evaluates in that numbering and returns the results in
     the caller's vertex order. Results are bit-identical whatever the number
-    of threads. The scratch arrays of a call (about 200 bytes per vertex, in
-    huge pages, see :func:`~pverosion.kernels._scratch.scratch_arrays`) are
-    kept for the next one, so one operator serves one thread at a time; the
+    of threads. The scratch arrays of a call (about 200 bytes per vertex, see
+    :func:`~pverosion.kernels._scratch.scratch_arrays`) are kept for the
+    next one, so one operator serves one thread at a time; the
     returned arrays are always fresh. Use it when the points move but the
     faces stay (iterative erosion), or call :func:`principal_curvatures` for
     one shot.
