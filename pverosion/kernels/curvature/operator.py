@@ -17,7 +17,6 @@ from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range, chunk_total
-from pverosion.kernels._scratch import scratch_arrays
 from pverosion.kernels._threads import for_chunks, for_ranges
 from pverosion.kernels.mesh.geometry import face_normal_terms, mixed_corner_areas
 from pverosion.kernels.mesh.locality import Renumbering, morton_renumbering, poor_locality
@@ -532,9 +531,8 @@ class CurvatureOperator:
     curve of its points (:func:`~pverosion.kernels.mesh.locality.morton_renumbering`);
     every call then evaluates in that numbering and returns the results in
     the caller's vertex order. Results are bit-identical whatever the number
-    of threads. The scratch arrays of a call (about 200 bytes per vertex, see
-    :func:`~pverosion.kernels._scratch.scratch_arrays`) are kept for the
-    next one, so one operator serves one thread at a time; the
+    of threads. The scratch arrays of a call (about 200 bytes per vertex)
+    are kept for the next one, so one operator serves one thread at a time; the
     returned arrays are always fresh. Use it when the points move but the
     faces stay (iterative erosion), or call :func:`principal_curvatures` for
     one shot.
@@ -647,8 +645,8 @@ class CurvatureOperator:
         if self._scratch is None:
             n = self.n_vertices
             local = self.renumbering is not None
-            arrays = scratch_arrays(*([((n, 3), np.float64)] * (3 if local else 1)), ((CHUNKS, n, 4), np.float64))
-            self._scratch = (arrays[0], arrays[1], arrays[2], arrays[3]) if local else (None, None, *arrays)
+            rows = (np.empty((n, 3)), np.empty((n, 3))) if local else (None, None)
+            self._scratch = (*rows, np.empty((n, 3)), np.empty((CHUNKS, n, 4)))
         return self._scratch
 
 
