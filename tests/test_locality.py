@@ -165,3 +165,15 @@ def test_operator_results_are_not_overwritten_by_later_calls(bumpy):
     op(points, normals=-first.normals)
     for name, value in _fields(first).items():
         assert np.array_equal(value, kept[name]), name
+
+
+def test_renumbering_gathers_into_a_given_array_and_rejects_a_wrong_one(bumpy):
+    points = bumpy[0]
+    ren = morton_renumbering(points)
+    out = np.full_like(points, np.nan)
+    assert ren.to_local(points, out=out) is out
+    assert np.array_equal(out, points[ren.order])
+    with pytest.raises(ValueError, match="shape"):
+        ren.to_local(points, out=np.empty((len(points), 2)))
+    with pytest.raises(ValueError, match="C-contiguous"):
+        ren.to_caller(points, out=np.empty((3, len(points))).T)
