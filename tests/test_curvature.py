@@ -177,3 +177,27 @@ def test_curvature_filter_equals_orientation_then_kernel(bunny, orientation):
     _ = [np.full((bunny.n_points, 3), 7.0) for _ in range(8)]
     oriented = assert_filter_equals_kernel(out, points, faces, orientation)
     assert out.field_data["flipped_faces"][0] == oriented.n_flipped
+
+
+@pytest.mark.parametrize(("nsub", "shuffle"), [(4, False), (6, True)])  # 2562 vertices: local; 40962 shuffled: not
+def test_mean_curvature_operator_equals_the_full_estimate(nsub, shuffle):
+    from pverosion.kernels.curvature.operator import MeanCurvatureOperator
+
+    s = icosphere(1.0, nsub)
+    p = np.asarray(s.points) * (1.0 + 0.05 * np.sin(3 * s.points[:, :1]) * np.cos(2 * s.points[:, 1:2]))
+    faces = s.regular_faces.astype(np.int64)
+    if shuffle:
+        perm = np.random.default_rng(2).permutation(len(p))
+        rank = np.empty_like(perm)
+        rank[perm] = np.arange(len(perm))
+        p, faces = p[perm], rank[faces]
+    full = CurvatureOperator(faces, len(p))(p)
+    mean_op = MeanCurvatureOperator(faces, len(p))
+    mean = mean_op(p)
+    assert (mean_op.renumbering is not None) == shuffle
+    assert np.array_equal(mean.normals, full.normals) and np.array_equal(mean.point_areas, full.point_areas)
+    assert np.allclose(mean.mean, full.mean, rtol=1e-12, atol=1e-12 * np.abs(full.mean).max())
+    given = mean_op(p, normals=full.normals)
+    assert np.array_equal(given.mean, mean.mean)
+    one, many = one_and_all_threads(lambda: MeanCurvatureOperator(faces, len(p))(p))
+    assert np.array_equal(one.mean, many.mean)

@@ -154,3 +154,26 @@ def test_orientation_of_a_shuffled_mesh_follows_the_permutation(bumpy):
     original = orient_faces(points[rank], perm[flipped])
     assert np.array_equal(shuffled.flipped, original.flipped)
     assert np.array_equal(perm[shuffled.faces], original.faces)
+
+
+def test_operator_results_are_not_overwritten_by_later_calls(bumpy):
+    points, faces, _ = bumpy
+    op = CurvatureOperator(faces, len(points))
+    first = op(points)
+    kept = {name: value.copy() for name, value in _fields(first).items()}
+    op(points * 1.5)
+    op(points, normals=-first.normals)
+    for name, value in _fields(first).items():
+        assert np.array_equal(value, kept[name]), name
+
+
+def test_renumbering_gathers_into_a_given_array_and_rejects_a_wrong_one(bumpy):
+    points = bumpy[0]
+    ren = morton_renumbering(points)
+    out = np.full_like(points, np.nan)
+    assert ren.to_local(points, out=out) is out
+    assert np.array_equal(out, points[ren.order])
+    with pytest.raises(ValueError, match="shape"):
+        ren.to_local(points, out=np.empty((len(points), 2)))
+    with pytest.raises(ValueError, match="C-contiguous"):
+        ren.to_caller(points, out=np.empty((3, len(points))).T)

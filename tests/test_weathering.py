@@ -367,3 +367,37 @@ def test_guard_watch_rolls_back_between_checks_and_only_whole_checks_make_restar
     assert any(0 < gap < solver.check_every for gap in solver.rolled[1:])  # later ones by the watch
     for other in runs[1:]:
         assert other.rolled == solver.rolled and np.array_equal(other.points, solver.points)
+
+
+def test_a_mesh_of_poor_locality_is_renumbered_and_weathers_as_in_its_own_order():
+    from conftest import icosphere
+
+    from pverosion.kernels.mesh.locality import poor_locality
+
+    s = icosphere(1.0, 6)
+    p = np.asarray(s.points, dtype=np.float64)
+    p = p * (1.0 + 0.05 * np.sin(3 * p[:, :1]) * np.cos(2 * p[:, 1:2]))
+    faces = s.regular_faces.astype(np.int64)
+    perm = np.random.default_rng(4).permutation(len(p))  # shuffled vertex i is vertex perm[i]
+    rank = np.empty_like(perm)
+    rank[perm] = np.arange(len(perm))
+    shuffled_points, shuffled_faces = p[perm], rank[faces]
+    assert poor_locality(shuffled_faces, len(p))
+    solvers = [WeatheringSolver(pts, fcs, min_edge_ratio=0.0, check_every=0)
+               for pts, fcs in ((p, faces), (shuffled_points, shuffled_faces))]
+    plain, local = solvers
+    assert not poor_locality(local.faces, len(p)) and not np.array_equal(local.ids, np.arange(len(p)))
+    assert np.array_equal(np.sort(local.ids), np.arange(len(p)))
+    assert np.array_equal(local.points, shuffled_points[local.ids])
+    assert np.allclose(local.initial_normals, plain.initial_normals[perm], rtol=0.0, atol=1e-12)
+    for solver in solvers:
+        solver.run(3)
+
+    def by_input(solver, values):
+        out = np.empty_like(values)
+        out[solver.ids] = values
+        return out
+
+    assert np.allclose(by_input(local, local.points), by_input(plain, plain.points)[perm], rtol=0.0, atol=1e-12)
+    assert np.allclose(by_input(local, local.displacement), by_input(plain, plain.displacement)[perm], rtol=0.0,
+                       atol=1e-12)

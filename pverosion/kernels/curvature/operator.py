@@ -18,12 +18,13 @@ from numba import njit, prange
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range, chunk_total
 from pverosion.kernels._threads import for_chunks, for_ranges
-from pverosion.kernels.mesh.geometry import face_normal_terms, mixed_corner_areas, vertex_normals
+from pverosion.kernels.mesh.geometry import face_normal_terms, mixed_corner_areas
 from pverosion.kernels.mesh.locality import Renumbering, morton_renumbering, poor_locality
 from pverosion.kernels.mesh.topology import locality_sorted, vertex_face_incidence
 from pverosion.kernels.validation import InvalidMeshError, as_faces, as_points
 
-__all__ = ["CurvatureOperator", "CurvatureResult", "CurvatureTracker", "principal_curvatures"]
+__all__ = ["CurvatureOperator", "CurvatureResult", "CurvatureTracker", "MeanCurvatureOperator", "MeanCurvatureResult",
+           "principal_curvatures"]
 
 
 @dataclass(frozen=True)
@@ -75,19 +76,44 @@ def _normal_frame(normal):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _frame_range(normals, tangents, start, stop):
+def _tangent_range(normals, tangents, start, stop):
     """First tangent of the :func:`_normal_frame` of vertices ``start`` to ``stop``; zero where the normal is."""
     for i in range(start, stop):
         nrm = v3.row(normals, i)
-        if v3.dot(nrm, nrm) != 0.0:
+        v3.store(tangents, i, _normal_frame(nrm)[0] if v3.dot(nrm, nrm) != 0.0 else (0.0, 0.0, 0.0))
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _normal_chunk(points, faces, acc, c):
+    """Zero ``acc[c]`` (V, 4) and add the Max-weighted normals of chunk ``c`` of the faces to their corners
+    in ``acc[c, :, :3]``, as :func:`~pverosion.kernels.mesh.geometry.vertex_normals` does."""
+    acc[c] = 0.0
+    start, stop = chunk_range(faces.shape[0], c)
+    for f in range(start, stop):
+        ok, n, w0, w1, w2 = face_normal_terms(points, faces, f, True)
+        if not ok:
+            continue
+        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        for d in range(3):
+            acc[c, i0, d] += w0 * n[d]
+            acc[c, i1, d] += w1 * n[d]
+            acc[c, i2, d] += w2 * n[d]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _frame_range(acc, normals, tangents, start, stop):
+    """Unit normals (the chunk sums of ``acc[:, :, :3]``) and first frame tangents of vertices ``start`` to
+    ``stop``; both zero where the sum is."""
+    for i in range(start, stop):
+        total = (chunk_total(acc, i, 0), chunk_total(acc, i, 1), chunk_total(acc, i, 2))
+        length = v3.norm(total)
+        if length > 0.0:
+            nrm = v3.scale(total, 1.0 / length)
+            v3.store(normals, i, nrm)
             v3.store(tangents, i, _normal_frame(nrm)[0])
-
-
-def _vertex_tangents(normals: np.ndarray) -> np.ndarray:
-    """The tangent ``u`` (V, 3) of every vertex frame; the frame is (u, normal x u, normal)."""
-    tangents = np.zeros_like(normals)
-    for_ranges(_frame_range, normals.shape[0], normals, tangents)
-    return tangents
+        else:
+            v3.store(normals, i, (0.0, 0.0, 0.0))
+            v3.store(tangents, i, (0.0, 0.0, 0.0))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -155,13 +181,14 @@ def _to_vertex_frame(nrm, u, t, b, nf, ta, tb, tc):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _face_corners(points, faces, normals, tangents, f):
-    """Corner areas (w0, w1, w2) of face ``f`` and its tensor in the frames of its three vertices.
+def _face_fit(points, faces, normals, f):
+    """Corner areas (w0, w1, w2) of face ``f`` and its fitted tensor.
 
-    ``tangents`` holds the first tangent of each vertex frame
-    (:func:`_vertex_tangents`). Returns ``(w0, w1, w2, t0, t1, t2)`` with each
-    ``t_k = (ku, kuv, kv)``; a degenerate face keeps its (zero) areas and has
-    zero tensors.
+    Returns ``(w0, w1, w2, ok, t, b, nf, ta, tb, tc, n0, n1, n2)``: the
+    tensor ``[[ta, tb], [tb, tc]]`` in the face frame ``(t, b)`` with unit
+    normal ``nf`` (see :func:`_fit_face_tensor`) and the normals of the three
+    vertices; ``ok`` is False for a degenerate face or a singular fit, which
+    keep their areas and have no tensor.
     """
     zero = (0.0, 0.0, 0.0)
     i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
@@ -173,15 +200,66 @@ def _face_corners(points, faces, normals, tangents, f):
     nn = v3.norm(n)
     w0, w1, w2 = mixed_corner_areas(0.5 * nn, l0, l1, l2, e0, e1, e2)
     if nn <= 1e-12 * (l0 + l1 + l2):
-        return w0, w1, w2, zero, zero, zero
+        return w0, w1, w2, False, zero, zero, zero, 0.0, 0.0, 0.0, zero, zero, zero
     n0, n1, n2 = v3.row(normals, i0), v3.row(normals, i1), v3.row(normals, i2)
     ok, t, b, nf, ta, tb, tc = _fit_face_tensor(e0, e1, e2, l0, n, nn, v3.sub(n2, n1), v3.sub(n0, n2),
                                                 v3.sub(n1, n0))
+    return w0, w1, w2, ok, t, b, nf, ta, tb, tc, n0, n1, n2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _face_corners(points, faces, normals, tangents, f):
+    """Corner areas (w0, w1, w2) of face ``f`` and its tensor in the frames of its three vertices.
+
+    ``tangents`` holds the first tangent of each vertex frame
+    (:func:`_frame_range`). Returns ``(w0, w1, w2, t0, t1, t2)`` with each
+    ``t_k = (ku, kuv, kv)``; a degenerate face keeps its (zero) areas and has
+    zero tensors.
+    """
+    w0, w1, w2, ok, t, b, nf, ta, tb, tc, n0, n1, n2 = _face_fit(points, faces, normals, f)
     if not ok:
+        zero = (0.0, 0.0, 0.0)
         return w0, w1, w2, zero, zero, zero
-    return (w0, w1, w2, _to_vertex_frame(n0, v3.row(tangents, i0), t, b, nf, ta, tb, tc),
-            _to_vertex_frame(n1, v3.row(tangents, i1), t, b, nf, ta, tb, tc),
-            _to_vertex_frame(n2, v3.row(tangents, i2), t, b, nf, ta, tb, tc))
+    return (w0, w1, w2, _to_vertex_frame(n0, v3.row(tangents, faces[f, 0]), t, b, nf, ta, tb, tc),
+            _to_vertex_frame(n1, v3.row(tangents, faces[f, 1]), t, b, nf, ta, tb, tc),
+            _to_vertex_frame(n2, v3.row(tangents, faces[f, 2]), t, b, nf, ta, tb, tc))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _seen_trace(nrm, nf, trace):
+    """The trace of a face tensor in the frame of a vertex of normal ``nrm``: a rotation keeps it, so it is
+    ``trace``, or zero where :func:`_to_vertex_frame` gives a zero tensor."""
+    if 1.0 + v3.dot(nrm, nf) <= 1e-12 or v3.dot(nrm, nrm) == 0.0:
+        return 0.0
+    return trace
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _trace_chunk(points, faces, normals, acc, c):
+    """Zero ``acc[c]`` and add the corner-area-weighted traces of the face tensors of chunk ``c`` of the faces
+    and the weights into ``acc[c, :, :2]``."""
+    acc[c] = 0.0
+    start, stop = chunk_range(faces.shape[0], c)
+    for f in range(start, stop):
+        w0, w1, w2, ok, _, _, nf, ta, _, tc, n0, n1, n2 = _face_fit(points, faces, normals, f)
+        trace = ta + tc
+        for k, (w, nrm) in enumerate(((w0, n0), (w1, n1), (w2, n2))):
+            i = faces[f, k]
+            acc[c, i, 0] += w * (_seen_trace(nrm, nf, trace) if ok else 0.0)
+            acc[c, i, 1] += w
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _mean_range(normals, acc, order, mean, area, normals_out, start, stop):
+    """Mean curvature (half the averaged trace) and area of vertices ``start`` to ``stop``, stored with their
+    normals in the caller's rows ``order[i]``; zero without area or normal, as :func:`_diagonalise` gives."""
+    for i in range(start, stop):
+        total = chunk_total(acc, i, 1)
+        row = order[i]
+        area[row] = total
+        nrm = v3.row(normals, i)
+        mean[row] = 0.0 if total <= 0.0 or v3.dot(nrm, nrm) == 0.0 else 0.5 * (chunk_total(acc, i, 0) / total)
+        v3.store(normals_out, row, nrm)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -194,23 +272,15 @@ def _add_corner(acc, c, i, w, tensor):
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def _tensor_chunk(points, faces, normals, tangents, acc, c):
-    """Add the corner-area-weighted face tensors of chunk ``c`` of the faces, in the vertex frames, and the
-    weights into ``acc[c]``, which holds (ku, kuv, kv, w) per vertex."""
+    """Zero ``acc[c]`` and add the corner-area-weighted face tensors of chunk ``c`` of the faces, in the vertex
+    frames, and the weights into it: (ku, kuv, kv, w) per vertex."""
+    acc[c] = 0.0
     start, stop = chunk_range(faces.shape[0], c)
     for f in range(start, stop):
         w0, w1, w2, t0, t1, t2 = _face_corners(points, faces, normals, tangents, f)
         _add_corner(acc, c, faces[f, 0], w0, t0)
         _add_corner(acc, c, faces[f, 1], w1, t1)
         _add_corner(acc, c, faces[f, 2], w2, t2)
-
-
-def _vertex_tensors(points: np.ndarray, faces: np.ndarray, normals: np.ndarray,
-                    tangents: np.ndarray) -> np.ndarray:
-    """Per chunk of faces, the corner-area-weighted sums of the face tensors in the
-    vertex frames, and the weight sums: shape (CHUNKS, V, 4) holding (ku, kuv, kv, w)."""
-    acc = np.zeros((CHUNKS, points.shape[0], 4))
-    for_chunks(_tensor_chunk, faces.shape[0], points, faces, normals, tangents, acc)
-    return acc
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -461,8 +531,11 @@ class CurvatureOperator:
     curve of its points (:func:`~pverosion.kernels.mesh.locality.morton_renumbering`);
     every call then evaluates in that numbering and returns the results in
     the caller's vertex order. Results are bit-identical whatever the number
-    of threads. Use it when the points move but the faces stay (iterative
-    erosion), or call :func:`principal_curvatures` for one shot.
+    of threads. The scratch arrays of a call (about 200 bytes per vertex)
+    are kept for the next one, so one operator serves one thread at a time; the
+    returned arrays are always fresh. Use it when the points move but the
+    faces stay (iterative erosion), or call :func:`principal_curvatures` for
+    one shot.
 
     Parameters
     ----------
@@ -500,6 +573,7 @@ class CurvatureOperator:
         self.renumbering: Renumbering | None = None
         self._scattered = fcs if poor_locality(fcs, n_vertices) else None
         self.faces = None if self._scattered is not None else locality_sorted(fcs, n_vertices)[1]
+        self._scratch: tuple | None = None
 
     @classmethod
     def from_sorted(cls, faces: np.ndarray, n_vertices: int, *,
@@ -523,6 +597,7 @@ class CurvatureOperator:
         operator.renumbering = renumbering
         operator._scattered = None
         operator.faces = faces
+        operator._scratch = None
         return operator
 
     def __call__(self, points, *, normals=None) -> CurvatureResult:
@@ -534,6 +609,13 @@ class CurvatureOperator:
 
     def _evaluate(self, pts: np.ndarray, normals) -> CurvatureResult:
         """The estimate on already validated points (V, 3) float64, in their order."""
+        pts, nrm, tangents, acc = self._normals(pts, normals)
+        for_chunks(_tensor_chunk, self.faces.shape[0], pts, self.faces, nrm, tangents, acc)
+        return _vertex_curvatures(nrm, tangents, acc, None if self.renumbering is None else self.renumbering.order)
+
+    def _normals(self, pts: np.ndarray, normals) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The points, vertex normals and frame tangents (V, 3) in the local numbering, and the per-chunk sums
+        (CHUNKS, V, 4) to fill; the normals are ``normals`` when given, else Max-weighted."""
         nrm = None
         if normals is not None:
             nrm = np.ascontiguousarray(normals, dtype=np.float64)
@@ -544,14 +626,79 @@ class CurvatureOperator:
             self.faces = self.renumbering.sorted_faces(self._scattered)
             self._scattered = None
         ren = self.renumbering
+        local_points, local_normals, tangents, acc = self._buffers()
         if ren is not None:
-            pts = ren.to_local(pts)
-            nrm = None if nrm is None else ren.to_local(nrm)
+            pts = ren.to_local(pts, out=local_points)
+            nrm = None if nrm is None else ren.to_local(nrm, out=local_normals)
         if nrm is None:
-            nrm = vertex_normals(pts, self.faces, weighting="max")
-        tangents = _vertex_tangents(nrm)
-        acc = _vertex_tensors(pts, self.faces, nrm, tangents)
-        return _vertex_curvatures(nrm, tangents, acc, None if ren is None else ren.order)
+            nrm = local_normals if ren is not None else np.empty((self.n_vertices, 3))
+            for_chunks(_normal_chunk, self.faces.shape[0], pts, self.faces, acc)
+            for_ranges(_frame_range, self.n_vertices, acc, nrm, tangents)
+        else:
+            for_ranges(_tangent_range, self.n_vertices, nrm, tangents)
+        return pts, nrm, tangents, acc
+
+    def _buffers(self) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray, np.ndarray]:
+        """The scratch arrays of a call, made by the first and reused by the next ones: the points and
+        normals in the local numbering (None without a renumbering), the frame tangents (V, 3) and the
+        per-chunk sums (CHUNKS, V, 4)."""
+        if self._scratch is None:
+            n = self.n_vertices
+            local = self.renumbering is not None
+            rows = (np.empty((n, 3)), np.empty((n, 3))) if local else (None, None)
+            self._scratch = (*rows, np.empty((n, 3)), np.empty((CHUNKS, n, 4)))
+        return self._scratch
+
+
+@dataclass(frozen=True)
+class MeanCurvatureResult:
+    """Per-vertex mean curvature of a triangle mesh.
+
+    Attributes
+    ----------
+    mean : numpy.ndarray, shape (V,)
+        Mean curvature H = (k1 + k2) / 2.
+    normals : numpy.ndarray, shape (V, 3)
+        Unit vertex normals used by the estimate.
+    point_areas : numpy.ndarray, shape (V,)
+        Mixed Voronoi area of each vertex.
+    """
+
+    mean: np.ndarray
+    normals: np.ndarray
+    point_areas: np.ndarray
+
+
+class MeanCurvatureOperator(CurvatureOperator):
+    """The mean curvature of :class:`CurvatureOperator`, without the principal curvatures and directions.
+
+    Rotating a face tensor into a vertex frame keeps its trace, so the
+    averaged tensor's trace, twice the mean curvature, is the corner-area
+    weighted average of the face tensors' traces: no vertex frames, no
+    diagonalisation, and half the per-vertex sums. ``mean`` equals
+    :class:`CurvatureOperator`'s to rounding (the sums are taken in another
+    order); ``normals`` and ``point_areas`` are equal bit for bit. Same
+    parameters, renumbering and reuse as :class:`CurvatureOperator`.
+
+    Examples
+    --------
+    >>> import numpy as np, pyvista as pv
+    >>> sphere = pv.Icosphere(radius=2.0, nsub=4)
+    >>> op = MeanCurvatureOperator(sphere.regular_faces, sphere.n_points)
+    >>> bool(np.allclose(op(sphere.points).mean, 0.5, rtol=1e-4))  # float32 points
+    True
+    """
+
+    def _evaluate(self, pts: np.ndarray, normals) -> MeanCurvatureResult:
+        pts, nrm, _, acc = self._normals(pts, normals)
+        for_chunks(_trace_chunk, self.faces.shape[0], pts, self.faces, nrm, acc)
+        n = self.n_vertices
+        ren = self.renumbering
+        mean, area = np.empty(n), np.empty(n)
+        normals_out = nrm if ren is None else np.empty((n, 3))
+        order = np.arange(n) if ren is None else ren.order
+        for_ranges(_mean_range, n, nrm, acc, order, mean, area, normals_out)
+        return MeanCurvatureResult(mean=mean, normals=normals_out, point_areas=area)
 
 
 def principal_curvatures(points, faces, *, normals=None) -> CurvatureResult:

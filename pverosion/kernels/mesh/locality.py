@@ -186,13 +186,17 @@ def _take_rows(src, index, out, start, stop):
             out[i, d] = src[j, d]
 
 
-def _take(values: np.ndarray, index: np.ndarray) -> np.ndarray:
-    """``values[index]`` for float64 arrays (N,) or (N, K), gathered in parallel."""
+def _take(values: np.ndarray, index: np.ndarray, out: np.ndarray | None) -> np.ndarray:
+    """``values[index]`` for float64 arrays (N,) or (N, K), gathered in parallel into ``out`` (or a new array)."""
     src = np.ascontiguousarray(values, dtype=np.float64)
     rows = src.reshape(len(src), -1)
-    out = np.empty((len(index), rows.shape[1]))
-    for_ranges(_take_rows, len(index), rows, index, out)
-    return out.reshape((len(index),) + src.shape[1:])
+    shape = (len(index),) + src.shape[1:]
+    if out is None:
+        out = np.empty(shape)
+    elif out.shape != shape or out.dtype != np.float64 or not out.flags.c_contiguous:
+        raise ValueError(f"out must be a C-contiguous float64 array of shape {shape}; got {out.dtype} {out.shape}")
+    for_ranges(_take_rows, len(index), rows, index, out.reshape(len(index), rows.shape[1]))
+    return out
 
 
 @dataclass(frozen=True)
@@ -210,13 +214,15 @@ class Renumbering:
     order: np.ndarray
     rank: np.ndarray
 
-    def to_local(self, values: np.ndarray) -> np.ndarray:
-        """Per-vertex float64 ``values`` (V,) or (V, K) in the local order."""
-        return _take(values, self.order)
+    def to_local(self, values: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+        """Per-vertex float64 ``values`` (V,) or (V, K) in the local order, written to ``out`` when given
+        (a C-contiguous float64 array of the same shape, reused by repeated calls) and returned."""
+        return _take(values, self.order, out)
 
-    def to_caller(self, values: np.ndarray) -> np.ndarray:
-        """Per-vertex float64 ``values`` (V,) or (V, K) of the local numbering, in the caller's order."""
-        return _take(values, self.rank)
+    def to_caller(self, values: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+        """Per-vertex float64 ``values`` (V,) or (V, K) of the local numbering in the caller's order, written
+        to ``out`` when given, as :meth:`to_local`."""
+        return _take(values, self.rank, out)
 
     def faces(self, faces: np.ndarray) -> np.ndarray:
         """The caller's ``faces`` (F, 3) int64 in local vertex indices, in the same face order."""

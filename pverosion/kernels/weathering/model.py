@@ -30,11 +30,14 @@ from numba import njit
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._threads import for_ranges
 from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS, normalize_symmetric
+from pverosion.kernels.curvature.operator import MeanCurvatureOperator
 from pverosion.kernels.materials.erodibility import Erodibility, check_erodibility, erodibility_now
 from pverosion.kernels.mesh.geometry import average_edge_length
 from pverosion.kernels.mesh.laplacian import laplacian_vectors
+from pverosion.kernels.mesh.locality import locality_renumbering
 from pverosion.kernels.solver.mesh_evolution import GuardedMeshSolver, volume_area
 from pverosion.kernels.tolerances import FLAT_CURVATURE
+from pverosion.kernels.validation import as_triangle_mesh
 
 __all__ = ["DIRECTIONS", "STAT_NAMES", "WeatheringSolver"]
 
@@ -117,6 +120,11 @@ class WeatheringSolver(GuardedMeshSolver):
     ----------
     points, faces, ids, displacement, initial_normals, step_count, retries, collapses
         As for :class:`~pverosion.kernels.solver.mesh_evolution.GuardedMeshSolver`.
+        The vertices of an input of poor locality
+        (:func:`~pverosion.kernels.mesh.locality.poor_locality`, as after Loop
+        subdivision) are numbered along the Morton curve of their positions
+        from the start, so ``points`` lists them in that order; ``ids`` maps
+        every current vertex to its input index as always.
     profile : dict or None
         Set it to ``{}`` to collect the seconds spent per part of each step
         ("curvature", "laplacian", "displacement", "improvement" with the
@@ -134,6 +142,7 @@ class WeatheringSolver(GuardedMeshSolver):
 
     STAT_NAMES = STAT_NAMES
     PROGRESS_LABEL = "weathering"
+    _curvature_estimator = MeanCurvatureOperator  # a step needs H (and the normals), not the directions
 
     def __init__(
         self,
@@ -159,8 +168,15 @@ class WeatheringSolver(GuardedMeshSolver):
             raise ValueError(f"direction must be one of {DIRECTIONS}; got {direction!r}")
         if normalization not in SOLVER_NORMALIZATIONS:
             raise ValueError(f"normalization must be one of {SOLVER_NORMALIZATIONS}; got {normalization!r}")
-        super().__init__(points, faces, min_edge_ratio=min_edge_ratio, check_every=check_every,
+        pts, fcs = as_triangle_mesh(points, faces)
+        renumbering = locality_renumbering(pts, fcs)
+        if renumbering is not None:  # every step's passes then run in the local numbering
+            pts, fcs = renumbering.to_local(pts), renumbering.faces(fcs)
+        super().__init__(pts, fcs, min_edge_ratio=min_edge_ratio, check_every=check_every,
                          max_halvings=max_halvings, orientation=orientation, repair=repair)
+        if renumbering is not None:
+            self.ids = renumbering.order.copy()
+            self.initial_normals = renumbering.to_caller(self.initial_normals)
         self.power = float(power)
         self.step_divisor = float(step_divisor)
         self.direction = direction
