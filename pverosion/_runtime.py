@@ -6,7 +6,7 @@
   process on the same cores costs time in proportion, not tenfold. Variables the
   user has set are left alone.
 - :func:`configure_allocator` also runs on import (Linux with glibc): arrays of
-  up to 32 MB come from the heap and freed memory stays mapped (up to 64 MB),
+  up to 32 MB come from the heap and freed memory stays mapped (up to 256 MB),
   so the kernels' scratch arrays do not fault in fresh pages on every call.
 - :func:`stage_run` wraps one stage's execution: it caps numba's threads for
   small inputs (respecting ``NUMBA_NUM_THREADS`` and :func:`numba.set_num_threads`)
@@ -42,7 +42,7 @@ THREAD_ENVIRONMENT: dict[str, str] = {"OMP_WAIT_POLICY": "PASSIVE", "KMP_BLOCKTI
 """Defaults set by :func:`configure_environment` (OpenMP threads sleep when idle)."""
 
 ALLOCATOR_SETTINGS: dict[str, tuple[int, int]] = {
-    "M_TRIM_THRESHOLD": (-1, 64 << 20),
+    "M_TRIM_THRESHOLD": (-1, 256 << 20),
     "M_MMAP_THRESHOLD": (-3, 32 << 20),
 }
 """glibc ``mallopt`` parameters (number, value in bytes) set by :func:`configure_allocator`."""
@@ -93,7 +93,9 @@ def configure_allocator(environ: Mapping[str, str] | None = None,
     computation (``benchmarks/bench_curvature.py`` prints the bunny's kernel
     time between vtkCurvatures calls with and without this). This sets
     :data:`ALLOCATOR_SETTINGS` with ``mallopt``: allocations up to 32 MB come
-    from the heap, and up to 64 MB of freed memory at its top stays mapped.
+    from the heap, and up to 256 MB of freed memory at its top stays mapped
+    (a curvature call on a 400k-face mesh frees about 100 MB of them at once;
+    with a lower limit the heap is trimmed and the next call faults them in again).
 
     Nothing is changed when the user has set one of glibc's ``MALLOC_*``
     tuning variables or ``PVEROSION_MALLOC_TUNING=0``, or when the C library
