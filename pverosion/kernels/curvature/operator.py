@@ -18,7 +18,7 @@ from numba import njit, prange
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range, chunk_total
 from pverosion.kernels._threads import for_chunks, for_ranges
-from pverosion.kernels.mesh.geometry import face_normal_terms, mixed_corner_areas
+from pverosion.kernels.mesh.geometry import add_normal_chunk, face_normal_terms, mixed_corner_areas
 from pverosion.kernels.mesh.locality import Renumbering, morton_renumbering, poor_locality
 from pverosion.kernels.mesh.topology import locality_sorted, vertex_face_incidence
 from pverosion.kernels.validation import InvalidMeshError, as_faces, as_points
@@ -88,16 +88,7 @@ def _normal_chunk(points, faces, acc, c):
     """Zero ``acc[c]`` (V, 4) and add the Max-weighted normals of chunk ``c`` of the faces to their corners
     in ``acc[c, :, :3]``, as :func:`~pverosion.kernels.mesh.geometry.vertex_normals` does."""
     acc[c] = 0.0
-    start, stop = chunk_range(faces.shape[0], c)
-    for f in range(start, stop):
-        ok, n, w0, w1, w2 = face_normal_terms(points, faces, f, True)
-        if not ok:
-            continue
-        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-        for d in range(3):
-            acc[c, i0, d] += w0 * n[d]
-            acc[c, i1, d] += w1 * n[d]
-            acc[c, i2, d] += w2 * n[d]
+    add_normal_chunk(points, faces, True, acc, c)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
