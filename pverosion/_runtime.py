@@ -94,7 +94,7 @@ def configure_allocator(environ: Mapping[str, str] | None = None,
     time between vtkCurvatures calls with and without this). This sets
     :data:`ALLOCATOR_SETTINGS` with ``mallopt``: allocations up to 32 MB come
     from the heap, and up to 256 MB of freed memory at its top stays mapped
-    (a curvature call on a 400k-face mesh frees about 100 MB of them at once;
+    (a curvature call on a 400k-face mesh frees more than 64 MB of them at once;
     with a lower limit the heap is trimmed and the next call faults them in again).
 
     Nothing is changed when the user has set one of glibc's ``MALLOC_*``

@@ -369,6 +369,24 @@ def test_guard_watch_rolls_back_between_checks_and_only_whole_checks_make_restar
         assert other.rolled == solver.rolled and np.array_equal(other.points, solver.points)
 
 
+def test_guard_watch_is_left_out_when_it_would_test_much_of_the_mesh(bunny, monkeypatch):
+    """With the watch's share of the faces capped below what the crease needs, every rollback comes from a check
+    of the whole mesh, as without a watch, and no step of the run spends time watching."""
+    from pverosion.kernels.solver import mesh_evolution
+
+    class Recorded(WeatheringSolver):
+        def _roll_back(self, hits):
+            self.rolled.append(self.step_count - self._clean.step)
+            super()._roll_back(hits)
+
+    monkeypatch.setattr(mesh_evolution, "WATCH_FRACTION", 1e-4)  # fewer than 7 faces of the scan's 69k
+    solver = Recorded(bunny.points, bunny.regular_faces)
+    solver.rolled, solver.profile = [], {}
+    solver.run(60)
+    assert solver.rolled and all(gap == solver.check_every for gap in solver.rolled)
+    assert "watch" not in solver.profile
+
+
 def test_a_mesh_of_poor_locality_is_renumbered_and_weathers_as_in_its_own_order():
     from conftest import icosphere
 

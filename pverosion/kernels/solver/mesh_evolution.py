@@ -31,7 +31,9 @@ and testing the whole mesh (a region that tangled once tends to tangle
 again). The watch only rolls back: a state becomes the restart point only
 after the check of the whole mesh. Results differ from a guard without the
 watch (rollbacks come at other steps) but, like the check, do not depend on
-the number of threads. There is no watch on an input that already
+the number of threads. The watch is left out while the faces it would test
+are more than a tenth of the mesh (slowed places far apart), so that it never
+costs more per step than a tenth of a whole check. There is no watch on an input that already
 intersects itself, nor with ``repair="topology"``, nor in a subclass that
 sets :attr:`GuardedMeshSolver.WATCH` to False (hydraulic erosion: there the
 water makes tangles that mostly come undone before the next check, and the
@@ -114,6 +116,10 @@ def volume_area(points: np.ndarray, faces: np.ndarray, origin: np.ndarray) -> tu
         volume += float(partial[c, 0])
         area += float(partial[c, 1])
     return volume / 6.0, area / 2.0
+
+
+WATCH_FRACTION = 0.1
+"""Largest share of the faces the guard's watch tests at every step; beyond it there is no watch."""
 
 
 @dataclass
@@ -481,6 +487,9 @@ class GuardedMeshSolver(SolverLoop):
         low, high = corners.min(axis=(0, 1)) - reach, corners.max(axis=(0, 1)) + reach
         near = np.all((self.points >= low) & (self.points <= high), axis=1)[self.faces].any(axis=1)
         local = np.flatnonzero(near | watched)
+        if len(local) > WATCH_FRACTION * len(self.faces):
+            # slowed places far apart: watching them would cost a check of much of the mesh at every step
+            return np.zeros(0, np.int64), np.zeros(0, bool)
         return local, watched[local]
 
     def _repair_topology(self) -> None:
