@@ -18,7 +18,7 @@ blocked (on the interpreter lock, say); per update, the CPU time of the process'
 (the main thread and the software rasterizer's; with ``--threads`` > 1 the kernels' helper threads
 too), and the cores the process used on average.
 
-Usage: ``python benchmarks/bench_live.py [--seconds 20] [--warmup 10] [--particles 17700] [--threads N]``
+Usage: ``python benchmarks/bench_live.py [--seconds 20] [--warmup 10] [--particles 17700] [--threads N] [--load N]``
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ import numba
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _load import add_load_option, run  # noqa: E402
 from bench_hydraulic import bunny_tank  # noqa: E402  (the same bunny scene)
 
 from pverosion.live import TIMER_MS, interactive  # noqa: E402
@@ -90,6 +91,7 @@ def main() -> None:
     parser.add_argument("--particles", type=int, default=17_700)
     parser.add_argument("--threads", type=int, default=None,
                         help="worker's kernel threads (default: LiveSession's, all but one)")
+    add_load_option(parser)
     args = parser.parse_args()
     session = bunny_session(args.particles, args.threads)
     session.step(args.warmup)
@@ -157,4 +159,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main, timings=("iteration_ms", "iteration_ms_view_idle", "update_ms_median", "update_ms_worker_stopped"))
