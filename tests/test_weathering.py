@@ -394,6 +394,14 @@ def test_guard_halves_a_place_once_then_slows_its_slowed_vertices_by_the_repeat_
     assert np.all(solver._scale[again] == 0.0) and np.all(solver._scale[changed & (once == 1.0)] == 0.5)
     assert solver.frozen == np.count_nonzero(again)
 
+    class Unwatched(WeatheringSolver):
+        WATCH = False  # as hydraulic erosion: every rollback halves
+
+    plain = Unwatched(sphere.points, sphere.regular_faces, max_halvings=3)
+    plain._roll_back(first)
+    plain._roll_back(second)
+    assert np.all(plain._scale[again] == 0.25)
+
 
 def test_guard_watch_is_left_out_when_it_would_test_much_of_the_mesh(bunny, monkeypatch):
     """With the watch's share of the faces capped below what the crease needs, every rollback comes from a check

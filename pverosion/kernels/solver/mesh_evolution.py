@@ -20,7 +20,8 @@ its pace). A vertex that was slowed down before has its displacement length
 multiplied by :attr:`GuardedMeshSolver.REPEAT_FACTOR` (1/8: three halvings at
 once) instead: a place that tangles again at half its pace (on the bunny
 scan, a sharp crease) would otherwise tangle, and be rolled back and redone,
-once per halving. The slowing down is kept for the rest of the run; a vertex
+once per halving. (Not in a subclass without the watch described below,
+hydraulic erosion: there every rollback halves.) The slowing down is kept for the rest of the run; a vertex
 halved more than ``max_halvings`` times is frozen (it stops moving and is
 never collapsed). ``retries`` counts the rollbacks, ``frozen`` the frozen
 vertices.
@@ -190,7 +191,8 @@ class GuardedMeshSolver(SolverLoop):
     WATCH: ClassVar[bool] = True
     """Whether the guard watches the faces at slowed or frozen vertices between its checks (see the module)."""
     REPEAT_FACTOR: ClassVar[float] = 0.125
-    """Step length factor of a vertex slowed down before that the guard slows down again (others: 0.5)."""
+    """Step length factor of a vertex slowed down before that the guard slows down again (others: 0.5); only
+    with :attr:`WATCH` (without it every rollback halves)."""
     _curvature_estimator: ClassVar[type] = CurvatureOperator
     """Curvature of the current points, built per connectivity (:class:`CurvatureTracker` where few points move)."""
 
@@ -457,8 +459,9 @@ class GuardedMeshSolver(SolverLoop):
                 "switch mesh improvement off (min_edge_ratio=0) or repair the input"
             )
         # a place that tangles again at half its pace needs far shorter steps: its slowed vertices count three
-        # halvings at once
-        self._scale[ids] *= np.where(self._scale[ids] < 1.0, self.REPEAT_FACTOR, 0.5)
+        # halvings at once (with the watch; without it, as in hydraulic erosion, every rollback halves)
+        repeat = self.REPEAT_FACTOR if self.WATCH else 0.5
+        self._scale[ids] *= np.where(self._scale[ids] < 1.0, repeat, 0.5)
         self._scale[self._scale < 0.5**self.max_halvings] = 0.0
         self.retries += 1
         self._watched = None
