@@ -21,9 +21,9 @@ multiplied by :attr:`GuardedMeshSolver.REPEAT_FACTOR` (1/8: three halvings at
 once) instead: a place that tangles again at half its pace (on the bunny
 scan, a sharp crease) would otherwise tangle, and be rolled back and redone,
 once per halving. (Not in a subclass without the watch described below,
-hydraulic erosion: there every rollback halves.) The slowing down is kept for the rest of the run; a vertex
-halved more than ``max_halvings`` times is frozen (it stops moving and is
-never collapsed). ``retries`` counts the rollbacks, ``frozen`` the frozen
+hydraulic erosion: there every rollback halves.) The slowing down is kept
+for the rest of the run; a vertex halved more than ``max_halvings`` times is
+frozen (it stops moving and is never collapsed). ``retries`` counts the rollbacks, ``frozen`` the frozen
 vertices.
 
 Between two checks the guard watches the places where it rolled back: at
@@ -156,7 +156,8 @@ class GuardedMeshSolver(SolverLoop):
         Self-intersection guard period in steps; 0 switches the guard off.
     max_halvings : int, default: 4
         Freeze a vertex whose displacement had to be halved more than this
-        many times (a repeated slowing down counts as three halvings).
+        many times (with :attr:`WATCH`, a repeated slowing down counts as
+        three halvings).
     orientation : {"outward", "inward", "keep"}, default: "outward"
     repair : {"retry", "topology", "off"}, default: "retry"
         What the guard does when the surface meets itself: roll back and
