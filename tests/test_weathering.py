@@ -369,6 +369,40 @@ def test_guard_watch_rolls_back_between_checks_and_only_whole_checks_make_restar
         assert other.rolled == solver.rolled and np.array_equal(other.points, solver.points)
 
 
+def test_guard_halves_a_place_once_then_slows_its_slowed_vertices_by_the_repeat_factor():
+    """A first rollback halves the steps of the two-ring around the tangled faces; a second one around the same
+    face multiplies the already slowed vertices by ``REPEAT_FACTOR`` (three halvings) and halves the ones it
+    reaches for the first time; past ``max_halvings`` halvings a vertex is frozen."""
+    from conftest import icosphere
+
+    sphere = icosphere(1.0, 3)
+    solver = WeatheringSolver(sphere.points, sphere.regular_faces, max_halvings=3)
+    assert solver.REPEAT_FACTOR == 0.125
+    first = np.zeros(len(solver.faces), bool)
+    first[0] = True
+    solver._roll_back(first)
+    once = solver._scale.copy()
+    assert set(np.unique(once)) == {0.5, 1.0} and solver.retries == 1
+    assert np.all(once[solver.faces[0]] == 0.5)
+    second = np.zeros(len(solver.faces), bool)
+    second[np.flatnonzero((once[solver.faces] == 0.5).all(axis=1))[-1]] = True  # a face at the first ring's rim
+    solver._roll_back(second)
+    changed = solver._scale != once
+    again = changed & (once == 0.5)
+    assert again.any() and (changed & (once == 1.0)).any()
+    # 0.5 / 8 is four halvings, more than max_halvings = 3: frozen; first reached: halved
+    assert np.all(solver._scale[again] == 0.0) and np.all(solver._scale[changed & (once == 1.0)] == 0.5)
+    assert solver.frozen == np.count_nonzero(again)
+
+    class Unwatched(WeatheringSolver):
+        WATCH = False  # as hydraulic erosion: every rollback halves
+
+    plain = Unwatched(sphere.points, sphere.regular_faces, max_halvings=3)
+    plain._roll_back(first)
+    plain._roll_back(second)
+    assert np.all(plain._scale[again] == 0.25)
+
+
 def test_guard_watch_is_left_out_when_it_would_test_much_of_the_mesh(bunny, monkeypatch):
     """With the watch's share of the faces capped below what the crease needs, every rollback comes from a check
     of the whole mesh, as without a watch, and no step of the run spends time watching."""
