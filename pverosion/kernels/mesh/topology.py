@@ -306,15 +306,24 @@ def _count_parts(faces, bounds, lows, counts, start, stop):
             counts[p, a2] += 1
 
 
-def _part_offsets(lows: np.ndarray, counts: np.ndarray) -> np.ndarray:
+@njit(cache=True, error_model="numpy")
+def _part_offsets(lows, counts, indptr):
     """Turn the per-part counts (P, V) of :func:`_count_parts` into the first sorted position of each part's faces
-    per smallest vertex and of its corners per vertex, in place; returns the corner offsets ``indptr`` (V + 1,)."""
-    indptr = np.zeros(counts.shape[1] + 1, np.int64)
-    np.cumsum(counts.sum(axis=0), out=indptr[1:])
-    for table in (lows, counts):  # exclusive running sums in vertex-major, part-minor order
-        flat = table.T.ravel()
-        table.T[...] = (np.cumsum(flat) - flat).reshape(table.shape[1], table.shape[0])
-    return indptr
+    per smallest vertex and of its corners per vertex (exclusive running sums in vertex-major, part-minor
+    order), in place, and fill the corner offsets ``indptr`` (V + 1,)."""
+    n_parts, n_vertices = counts.shape
+    faces_before = 0
+    corners_before = 0
+    for v in range(n_vertices):
+        indptr[v] = corners_before
+        for p in range(n_parts):
+            n_low = lows[p, v]
+            lows[p, v] = faces_before
+            faces_before += n_low
+            n_corner = counts[p, v]
+            counts[p, v] = corners_before
+            corners_before += n_corner
+    indptr[n_vertices] = corners_before
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -350,7 +359,8 @@ def _sort_with_slots(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, ..
     lows = np.zeros((parts, n_vertices), np.int64)
     counts = np.zeros((parts, n_vertices), np.int64)
     for_ranges(_count_parts, parts, faces, bounds, lows, counts, min_items=1)
-    indptr = _part_offsets(lows, counts)
+    indptr = np.empty(n_vertices + 1, np.int64)
+    _part_offsets(lows, counts, indptr)
     order = np.empty(n_faces, np.int64)
     rows = np.empty_like(faces)
     after, before, half = (np.empty(3 * n_faces, np.int32) for _ in range(3))
