@@ -3,8 +3,7 @@ import pytest
 from conftest import height_field, icosphere
 
 from pverosion.kernels import orient_faces, signed_volume, winding_number
-from pverosion.kernels.mesh.orientation import _consistent_components, _propagate, orient_sorted
-from pverosion.kernels.mesh.topology import sorted_twins
+from pverosion.kernels.mesh.orientation import orient_sorted
 
 
 def _scramble(faces, seed=0):
@@ -165,33 +164,3 @@ def test_consistent_open_hemisphere_is_turned_to_face_out(reverse):
     np.testing.assert_array_equal(o.faces, faces[:, [0, 2, 1]] if reverse else cap)  # a flip swaps the last two
     normals = np.cross(p[o.faces[:, 1]] - p[o.faces[:, 0]], p[o.faces[:, 2]] - p[o.faces[:, 0]])
     assert np.all(np.einsum("ij,ij->i", normals, p[o.faces].mean(axis=1)) > 0)  # away from the centre
-
-
-def _propagated(faces, partner):
-    flip = np.zeros(len(faces), bool)
-    component = np.full(len(faces), -1, np.int64)
-    n = _propagate(faces, partner, flip, component, np.empty(len(faces), np.int64))
-    return n, flip, component
-
-
-def test_union_find_components_of_consistent_faces_equal_the_propagated_ones():
-    p, first, second = _touching_spheres()
-    outer, inner = icosphere(3.0, 2), icosphere(0.5, 1)  # one more shell, and a cavity wound the other way
-    f = np.vstack([first, second, outer.regular_faces + len(p), inner.regular_faces[:, ::-1] + len(p) + outer.n_points])
-    f = f[np.random.default_rng(3).permutation(len(f))]
-    _, rows, partner, _ = sorted_twins(f, len(p) + outer.n_points + inner.n_points)
-    n, flip, expected = _propagated(rows, partner)
-    assert n == 4 and not flip.any()
-    component = np.empty(len(rows), np.int64)
-    assert _consistent_components(rows, partner, component, np.empty(len(rows), np.int64)) == 4
-    np.testing.assert_array_equal(component, expected)
-
-
-def test_union_find_components_decline_faces_to_reverse_and_repeated_corners():
-    s = icosphere(1.0, 2)
-    scrambled = _scramble(s.regular_faces, seed=2)[0]
-    degenerate = np.vstack([s.regular_faces, [[0, 0, 1]]])
-    for f in (scrambled, degenerate):
-        _, rows, partner, _ = sorted_twins(f, s.n_points)
-        scratch = np.empty(len(rows), np.int64)
-        assert _consistent_components(rows, partner, np.empty(len(rows), np.int64), scratch) == -1

@@ -96,52 +96,6 @@ def _propagate(faces, partner, flip, comp, stack):
 
 
 @njit(cache=True, error_model="numpy")
-def _find(parent, v):
-    """Root of ``v`` in the union-find forest ``parent``, halving the path on the way."""
-    while parent[v] != v:
-        parent[v] = parent[parent[v]]
-        v = parent[v]
-    return v
-
-
-@njit(cache=True, error_model="numpy")
-def _consistent_components(faces, partner, comp, parent):
-    """The edge-connected components of faces (F, 3) already consistent across their manifold edges (twins
-    ``partner`` (3F,)), by union-find: the component of each face into ``comp`` (F,), numbered in order of
-    their first face as :func:`_propagate` numbers them, and their number. Returns -1 as soon as two twins
-    run in the same direction (a face to reverse) or a face repeats a corner. ``parent`` (F,) is scratch."""
-    n_faces = faces.shape[0]
-    for f in range(n_faces):
-        parent[f] = f
-    for f in range(n_faces):
-        a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
-        if a0 == a1 or a1 == a2 or a2 == a0:
-            return -1  # a repeated corner can make the twins one-sided, which only the propagation follows
-        for k in range(3):
-            p = partner[3 * f + k]
-            g = p // 3
-            if p < 0 or g <= f:
-                continue
-            if faces[f, k] == faces[g, p - 3 * g]:
-                return -1
-            a = _find(parent, f)
-            b = _find(parent, g)
-            if a < b:  # the root of a component is its first face
-                parent[b] = a
-            elif b < a:
-                parent[a] = b
-    n_comp = 0
-    for f in range(n_faces):
-        r = _find(parent, f)
-        if r == f:
-            comp[f] = n_comp
-            n_comp += 1
-        else:
-            comp[f] = comp[r]
-    return n_comp
-
-
-@njit(cache=True, error_model="numpy")
 def _winding(point, points, faces):
     total = 0.0
     for f in range(faces.shape[0]):
@@ -173,6 +127,14 @@ def winding_number(point, points: np.ndarray, faces: np.ndarray) -> float:
         near the holes of an open one.
     """
     return float(_winding(np.asarray(point, dtype=np.float64), points, faces))
+
+
+@njit(cache=True, error_model="numpy")
+def _find(parent, v):
+    while parent[v] != v:
+        parent[v] = parent[parent[v]]
+        v = parent[v]
+    return v
 
 
 @njit(cache=True, error_model="numpy")
@@ -365,12 +327,8 @@ def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward
         raise ValueError(f"orientation must be 'outward' or 'inward'; got {mode!r}")
     order, local, partner, others = sorted_twins(faces, len(points))
     flip = np.zeros(len(local), np.bool_)
-    component = np.empty(len(local), np.int64)
-    scratch = np.empty(len(local), np.int64)
-    n_comp = _consistent_components(local, partner, component, scratch)
-    if n_comp < 0:  # some faces to reverse: propagate the orientation
-        component.fill(-1)
-        n_comp = _propagate(local, partner, flip, component, scratch)
+    component = np.full(len(local), -1, np.int64)
+    n_comp = _propagate(local, partner, flip, component, np.empty(len(local), np.int64))
     volume, extent = _closed_volumes(points, local, flip, component, n_comp, others)
     decided = np.abs(volume) > 1e-9 * extent**3
     turn = decided & (volume < 0)
