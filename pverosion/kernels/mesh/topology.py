@@ -384,16 +384,24 @@ def _match_sorted_range(rows, starts, far_end, far_half, partner, others, start,
         for s in range(starts[1, v], starts[1, v + 1]):
             ends[n], halves[n] = far_end[s], far_half[s]
             n += 1
-        for s in range(n):
-            found = -1
+        for s in range(n):  # each group of equal ends once, from its first member; seen members get end -1
+            end = ends[s]
+            if end < 0:
+                continue
             count = 0
-            for t in range(n):
-                if t != s and ends[t] == ends[s]:
-                    found = halves[t]
+            for t in range(s + 1, n):
+                if ends[t] == end:
                     count += 1
+            if count == 0:  # a boundary edge: no twin, no other face
+                continue
+            for t in range(s + 1, n):
+                if ends[t] == end:
+                    ends[t] = -1
+                    others[halves[t]] = count
+                    if count == 1:
+                        partner[halves[t]] = halves[s]
+                        partner[halves[s]] = halves[t]
             others[halves[s]] = count
-            if count == 1:
-                partner[halves[s]] = found
 
 
 def _sorted_twins_of_triangles(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, ...] | None:
