@@ -109,9 +109,12 @@ def test_locality_sorted_is_the_order_and_the_gathered_faces():
 def test_sorted_twins_equal_the_twins_of_the_sorted_faces():
     rng = np.random.default_rng(3)
     s = pv.Icosphere(nsub=2)
-    # a scrambled closed surface, and random faces with repeated vertices and edges used by 3+ faces
+    # a scrambled closed surface, random faces with edges used by 3+ faces and duplicate faces, with and
+    # without repeated vertices
+    rand = rng.integers(0, 12, (300, 3))
+    distinct = rand[(rand[:, 0] != rand[:, 1]) & (rand[:, 1] != rand[:, 2]) & (rand[:, 2] != rand[:, 0])]
     for f, n in ((s.regular_faces[rng.permutation(s.n_cells)].astype(np.int64), s.n_points),
-                 (rng.integers(0, 12, (150, 3)), 12)):
+                 (rand[:150], 12), (distinct, 12), (np.vstack([distinct[:40], distinct[:40, ::-1]]), 12)):
         order, rows, partner, others = sorted_twins(f, n)
         np.testing.assert_array_equal(order, locality_order(f, n))
         np.testing.assert_array_equal(rows, f[order])

@@ -292,70 +292,147 @@ def _put_corners(faces, f, h, fill, after, before, half):
     fill[a2] += 1
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _lowest_corner(a0, a1, a2):
+    """Corner (0, 1 or 2) of the smallest of three distinct vertices."""
+    if a0 < a1:
+        return 0 if a0 < a2 else 2
+    return 1 if a1 < a2 else 2
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
-def _count_parts(faces, bounds, lows, counts, start, stop):
+def _count_parts(faces, bounds, lows, mids, repeated, start, stop):
     """For parts ``start`` to ``stop`` of the faces (part ``p`` is ``bounds[p]`` to ``bounds[p + 1]``): the faces
-    per smallest vertex into ``lows[p]`` and the corners per vertex into ``counts[p]``."""
+    per smallest vertex into ``lows[p]``, per middle vertex into ``mids[p]``, and the faces that repeat a corner
+    into ``repeated[p]``."""
     for p in range(start, stop):
         for f in range(bounds[p], bounds[p + 1]):
             a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
-            lo = a0 if a0 < a1 else a1
-            lows[p, lo if lo < a2 else a2] += 1
-            counts[p, a0] += 1
-            counts[p, a1] += 1
-            counts[p, a2] += 1
+            if a0 == a1 or a1 == a2 or a2 == a0:
+                repeated[p] += 1
+                continue
+            j = _lowest_corner(a0, a1, a2)
+            lows[p, faces[f, j]] += 1
+            b, c = faces[f, (j + 1) % 3], faces[f, (j + 2) % 3]
+            mids[p, b if b < c else c] += 1
 
 
-def _part_offsets(lows: np.ndarray, counts: np.ndarray) -> np.ndarray:
+@njit(cache=True, error_model="numpy")
+def _part_offsets(lows, mids, starts):
     """Turn the per-part counts (P, V) of :func:`_count_parts` into the first sorted position of each part's faces
-    per smallest vertex and of its corners per vertex, in place; returns the corner offsets ``indptr`` (V + 1,)."""
-    indptr = np.zeros(counts.shape[1] + 1, np.int64)
-    np.cumsum(counts.sum(axis=0), out=indptr[1:])
-    for table in (lows, counts):  # exclusive running sums in vertex-major, part-minor order
-        flat = table.T.ravel()
-        table.T[...] = (np.cumsum(flat) - flat).reshape(table.shape[1], table.shape[0])
-    return indptr
+    per smallest vertex and of its far edges per middle vertex (exclusive running sums in vertex-major,
+    part-minor order), in place; ``starts`` (2, V + 1) gets where the faces and the far edges of each vertex
+    start."""
+    n_parts, n_vertices = lows.shape
+    faces_before = 0
+    edges_before = 0
+    for v in range(n_vertices):
+        starts[0, v] = faces_before
+        starts[1, v] = edges_before
+        for p in range(n_parts):
+            n_low = lows[p, v]
+            lows[p, v] = faces_before
+            faces_before += n_low
+            n_mid = mids[p, v]
+            mids[p, v] = edges_before
+            edges_before += n_mid
+    starts[0, n_vertices] = faces_before
+    starts[1, n_vertices] = edges_before
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _fill_parts(faces, bounds, lows, counts, order, rows, after, before, half, start, stop):
-    """Place the faces of parts ``start`` to ``stop`` at their sorted positions and their corners in the slots."""
+def _fill_parts(faces, bounds, lows, mids, order, rows, far_end, far_half, start, stop):
+    """Place the faces of parts ``start`` to ``stop`` at their sorted positions, and the far edge of each (the
+    one away from its smallest vertex) in the slots of its smaller vertex: its larger vertex into ``far_end``
+    and its half-edge of the sorted faces into ``far_half``."""
     for p in range(start, stop):
-        fill = counts[p]
         for f in range(bounds[p], bounds[p + 1]):
             a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
-            lo = a0 if a0 < a1 else a1
-            lo = lo if lo < a2 else a2
-            i = lows[p, lo]
-            lows[p, lo] += 1
+            j = _lowest_corner(a0, a1, a2)
+            i = lows[p, faces[f, j]]
+            lows[p, faces[f, j]] = i + 1
             order[i] = f
             rows[i, 0], rows[i, 1], rows[i, 2] = a0, a1, a2
-            _put_corners(faces, f, 3 * i, fill, after, before, half)
+            b, c = faces[f, (j + 1) % 3], faces[f, (j + 2) % 3]
+            lo, hi = (b, c) if b < c else (c, b)
+            s = mids[p, lo]
+            mids[p, lo] = s + 1
+            far_end[s] = hi
+            far_half[s] = 3 * i + (j + 1) % 3
 
 
-def _sort_with_slots(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, ...]:
-    """:func:`_sort_by_min_vertex` and :func:`_corner_slots` of the sorted faces, as one counting sort.
+@njit(cache=True, error_model="numpy", nogil=True)
+def _match_sorted_range(rows, starts, far_end, far_half, partner, others, start, stop):
+    """Twins and edge multiplicities of the half-edges of the edges whose smaller vertex is ``start`` to ``stop``.
 
-    The faces are split into one part per thread; each part counts and
-    then places its own faces, from offsets that put the parts in order, so
-    the result is that of one pass over the faces whatever the number of
-    threads. The corners of a vertex come in input face order rather than
-    sorted order, which changes nothing that :func:`_match_slots` computes.
+    The edges of vertex ``v`` to larger vertices are the two at ``v`` of its faces (those with smallest vertex
+    ``v``, sorted rows ``starts[0, v]`` to ``starts[0, v + 1]``) and its far-edge slots."""
+    ends = np.empty(16, np.int64)
+    halves = np.empty(16, np.int64)
+    for v in range(start, stop):
+        first, last = starts[0, v], starts[0, v + 1]
+        size = 2 * (last - first) + starts[1, v + 1] - starts[1, v]
+        if size > ends.shape[0]:
+            ends = np.empty(2 * size, np.int64)
+            halves = np.empty(2 * size, np.int64)
+        n = 0
+        for i in range(first, last):
+            j = _lowest_corner(rows[i, 0], rows[i, 1], rows[i, 2])
+            ends[n], halves[n] = rows[i, (j + 1) % 3], 3 * i + j
+            ends[n + 1], halves[n + 1] = rows[i, (j + 2) % 3], 3 * i + (j + 2) % 3
+            n += 2
+        for s in range(starts[1, v], starts[1, v + 1]):
+            ends[n], halves[n] = far_end[s], far_half[s]
+            n += 1
+        for s in range(n):  # each group of equal ends once, from its first member; seen members get end -1
+            end = ends[s]
+            if end < 0:
+                continue
+            count = 0
+            for t in range(s + 1, n):
+                if ends[t] == end:
+                    count += 1
+            if count == 0:  # a boundary edge: no twin, no other face
+                continue
+            for t in range(s + 1, n):
+                if ends[t] == end:
+                    ends[t] = -1
+                    others[halves[t]] = count
+                    if count == 1:
+                        partner[halves[t]] = halves[s]
+                        partner[halves[s]] = halves[t]
+            others[halves[s]] = count
 
-    Returns ``order, rows, indptr, after, before, half``.
+
+def _sorted_twins_of_triangles(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, ...] | None:
+    """:func:`sorted_twins` by one counting sort split over the threads, or None when a face repeats a corner.
+
+    Each part of the faces counts and then places its own faces, from offsets
+    that put the parts in order, so the result is that of one pass over the
+    faces whatever the number of threads. Besides the sorted faces, only the
+    far edge of each face is sorted (into the slots of its smaller vertex):
+    the two other edges start at the face's smallest vertex, so the sorted
+    faces list them per vertex already.
     """
     n_faces = faces.shape[0]
     parts = range_count(n_faces)
     bounds = np.array([p * n_faces // parts for p in range(parts + 1)], np.int64)
     lows = np.zeros((parts, n_vertices), np.int64)
-    counts = np.zeros((parts, n_vertices), np.int64)
-    for_ranges(_count_parts, parts, faces, bounds, lows, counts, min_items=1)
-    indptr = _part_offsets(lows, counts)
+    mids = np.zeros((parts, n_vertices), np.int64)
+    repeated = np.zeros(parts, np.int64)
+    for_ranges(_count_parts, parts, faces, bounds, lows, mids, repeated, min_items=1)
+    if repeated.any():
+        return None
+    starts = np.empty((2, n_vertices + 1), np.int64)
+    _part_offsets(lows, mids, starts)
     order = np.empty(n_faces, np.int64)
     rows = np.empty_like(faces)
-    after, before, half = (np.empty(3 * n_faces, np.int32) for _ in range(3))
-    for_ranges(_fill_parts, parts, faces, bounds, lows, counts, order, rows, after, before, half, min_items=1)
-    return order, rows, indptr, after, before, half
+    far_end, far_half = np.empty(n_faces, np.int32), np.empty(n_faces, np.int32)
+    for_ranges(_fill_parts, parts, faces, bounds, lows, mids, order, rows, far_end, far_half, min_items=1)
+    partner = np.full(3 * n_faces, -1, np.int64)
+    others = np.zeros(3 * n_faces, np.int64)
+    for_ranges(_match_sorted_range, n_vertices, rows, starts, far_end, far_half, partner, others)
+    return order, rows, partner, others
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -469,11 +546,12 @@ def sorted_twins(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.nda
         As :func:`halfedge_twins` of ``sorted_faces`` returns them.
     """
     faces = np.ascontiguousarray(faces)
-    if not _slots_fit_int32(len(faces), n_vertices):
-        order, rows = locality_sorted(faces, n_vertices)
-        return (order, rows, *halfedge_twins(rows, n_vertices))
-    order, rows, indptr, after, before, half = _sort_with_slots(faces, int(n_vertices))
-    return (order, rows, *_match_slots(indptr, after, before, half))
+    if _slots_fit_int32(len(faces), n_vertices):
+        twins = _sorted_twins_of_triangles(faces, int(n_vertices))
+        if twins is not None:
+            return twins
+    order, rows = locality_sorted(faces, n_vertices)
+    return (order, rows, *halfedge_twins(rows, n_vertices))
 
 
 @njit(cache=True, error_model="numpy")
