@@ -84,14 +84,6 @@ def _tangent_range(normals, tangents, start, stop):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _normal_chunk(points, faces, acc, c):
-    """Zero ``acc[c]`` (V, 4) and add the Max-weighted normals of chunk ``c`` of the faces to their corners
-    in ``acc[c, :, :3]``, as :func:`~pverosion.kernels.mesh.geometry.vertex_normals` does."""
-    acc[c] = 0.0
-    add_normal_chunk(points, faces, True, acc, c)
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
 def _frame_range(acc, normals, tangents, start, stop):
     """Unit normals (the chunk sums of ``acc[:, :, :3]``) and first frame tangents of vertices ``start`` to
     ``stop``; both zero where the sum is."""
@@ -623,7 +615,8 @@ class CurvatureOperator:
             nrm = None if nrm is None else ren.to_local(nrm, out=local_normals)
         if nrm is None:
             nrm = local_normals if ren is not None else np.empty((self.n_vertices, 3))
-            for_chunks(_normal_chunk, self.faces.shape[0], pts, self.faces, acc)
+            # Max-weighted normals, as vertex_normals computes them; a Python bool: the same specialisation
+            for_chunks(add_normal_chunk, self.faces.shape[0], pts, self.faces, True, acc)
             for_ranges(_frame_range, self.n_vertices, acc, nrm, tangents)
         else:
             for_ranges(_tangent_range, self.n_vertices, nrm, tangents)
