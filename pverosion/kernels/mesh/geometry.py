@@ -92,21 +92,21 @@ def add_normal_chunk(points, faces, max_weights, acc, c):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _normalise_range(acc, out, start, stop):
-    """Unit sums over the chunks of ``acc`` for vertices ``start`` to ``stop`` (zero where the sum is zero)."""
+def normalise_range(acc, out, start, stop):
+    """Unit sums over the chunks of ``acc[:, :, :3]`` for vertices ``start`` to ``stop`` (zero where the sum is
+    zero)."""
     for i in range(start, stop):
         total = (chunk_total(acc, i, 0), chunk_total(acc, i, 1), chunk_total(acc, i, 2))
         length = v3.norm(total)
-        if length > 0.0:
-            v3.store(out, i, v3.scale(total, 1.0 / length))
+        v3.store(out, i, v3.scale(total, 1.0 / length) if length > 0.0 else (0.0, 0.0, 0.0))
 
 
 def _scatter_normals(points: np.ndarray, faces: np.ndarray, max_weights: bool) -> np.ndarray:
     n_vertices = points.shape[0]
     acc = np.empty((CHUNKS, n_vertices, 3))
     for_chunks(add_normal_chunk, faces.shape[0], points, faces, max_weights, acc)
-    out = np.zeros((n_vertices, 3))
-    for_ranges(_normalise_range, n_vertices, acc, out)
+    out = np.empty((n_vertices, 3))
+    for_ranges(normalise_range, n_vertices, acc, out)
     return out
 
 
