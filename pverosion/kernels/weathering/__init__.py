@@ -25,3 +25,7 @@ def __getattr__(name: str):
     if name not in __all__:
         warnings.warn(f"{__name__}.{name} is now {model.__name__}.{name}", DeprecationWarning, stacklevel=2)
     return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})
