@@ -30,7 +30,8 @@ from pverosion.kernels.mesh.geometry import average_edge_length
 from pverosion.kernels.mesh.laplacian import laplacian_vectors
 from pverosion.kernels.mesh.orientation import orient_faces
 from pverosion.kernels.mesh.topology import edge_topology, one_ring
-from pverosion.kernels.weathering.model import WeatheringSolver, _displace
+from pverosion.kernels.weathering.displacement import displace
+from pverosion.kernels.weathering.model import WeatheringSolver
 
 DEFAULT = data_path("bunny.ply")
 
@@ -41,7 +42,7 @@ def vtk_iteration(mesh: pv.PolyData, ring, edges, fixed, displacement) -> pv.Pol
     points = np.asarray(mesh.points, dtype=np.float64)
     e_avg = average_edge_length(points, None, edges=edges)
     direction = laplacian_vectors(points, None, ring=ring)
-    mesh.points = _displace(points, direction, True, normalize_symmetric(h), h, e_avg, 1.0, e_avg / 10.0,
+    mesh.points = displace(points, direction, True, normalize_symmetric(h), h, e_avg, 1.0, e_avg / 10.0,
                             np.ones(len(points)), fixed, displacement)
     return mesh
 

@@ -59,6 +59,7 @@ def test_an_old_module_path_is_the_moved_module_with_a_deprecation_warning(old):
 def test_a_package_that_replaced_its_module_still_offers_the_module_names(package, module):
     pkg = importlib.import_module(package)
     inner = importlib.import_module(f"{package}.{module}")
+    assert list(pkg.__all__) == list(inner.__all__)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert all(getattr(pkg, name) is getattr(inner, name) for name in inner.__all__)

@@ -18,7 +18,7 @@ from numba import njit, prange
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range, chunk_total
 from pverosion.kernels._threads import for_chunks, for_ranges
-from pverosion.kernels.mesh.geometry import add_normal_chunk, face_normal_terms, mixed_corner_areas
+from pverosion.kernels.mesh.geometry import add_normal_chunk, face_normal_terms, mixed_corner_areas, normalise_range
 from pverosion.kernels.mesh.locality import Renumbering, morton_renumbering, poor_locality
 from pverosion.kernels.mesh.topology import locality_sorted, vertex_face_incidence
 from pverosion.kernels.validation import InvalidMeshError, as_faces, as_points
@@ -81,14 +81,6 @@ def _tangent_range(normals, tangents, start, stop):
     for i in range(start, stop):
         nrm = v3.row(normals, i)
         v3.store(tangents, i, _normal_frame(nrm)[0] if v3.dot(nrm, nrm) != 0.0 else (0.0, 0.0, 0.0))
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _normal_chunk(points, faces, acc, c):
-    """Zero ``acc[c]`` (V, 4) and add the Max-weighted normals of chunk ``c`` of the faces to their corners
-    in ``acc[c, :, :3]``, as :func:`~pverosion.kernels.mesh.geometry.vertex_normals` does."""
-    acc[c] = 0.0
-    add_normal_chunk(points, faces, True, acc, c)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -604,9 +596,11 @@ class CurvatureOperator:
         for_chunks(_tensor_chunk, self.faces.shape[0], pts, self.faces, nrm, tangents, acc)
         return _vertex_curvatures(nrm, tangents, acc, None if self.renumbering is None else self.renumbering.order)
 
-    def _normals(self, pts: np.ndarray, normals) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _normals(self, pts: np.ndarray, normals, *,
+                 tangents: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The points, vertex normals and frame tangents (V, 3) in the local numbering, and the per-chunk sums
-        (CHUNKS, V, 4) to fill; the normals are ``normals`` when given, else Max-weighted."""
+        (CHUNKS, V, 4) to fill; the normals are ``normals`` when given, else Max-weighted. Without
+        ``tangents`` the tangents are not computed (the array is returned unfilled)."""
         nrm = None
         if normals is not None:
             nrm = np.ascontiguousarray(normals, dtype=np.float64)
@@ -617,17 +611,21 @@ class CurvatureOperator:
             self.faces = self.renumbering.sorted_faces(self._scattered)
             self._scattered = None
         ren = self.renumbering
-        local_points, local_normals, tangents, acc = self._buffers()
+        local_points, local_normals, frame, acc = self._buffers()
         if ren is not None:
             pts = ren.to_local(pts, out=local_points)
             nrm = None if nrm is None else ren.to_local(nrm, out=local_normals)
         if nrm is None:
             nrm = local_normals if ren is not None else np.empty((self.n_vertices, 3))
-            for_chunks(_normal_chunk, self.faces.shape[0], pts, self.faces, acc)
-            for_ranges(_frame_range, self.n_vertices, acc, nrm, tangents)
-        else:
-            for_ranges(_tangent_range, self.n_vertices, nrm, tangents)
-        return pts, nrm, tangents, acc
+            # Max-weighted normals, as vertex_normals computes them; a Python bool: the same specialisation
+            for_chunks(add_normal_chunk, self.faces.shape[0], pts, self.faces, True, acc)
+            if tangents:
+                for_ranges(_frame_range, self.n_vertices, acc, nrm, frame)
+            else:  # the kernel of vertex_normals, already compiled where the normals are
+                for_ranges(normalise_range, self.n_vertices, acc, nrm)
+        elif tangents:
+            for_ranges(_tangent_range, self.n_vertices, nrm, frame)
+        return pts, nrm, frame, acc
 
     def _buffers(self) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray, np.ndarray]:
         """The scratch arrays of a call, made by the first and reused by the next ones: the points and
@@ -681,7 +679,7 @@ class MeanCurvatureOperator(CurvatureOperator):
     """
 
     def _evaluate(self, pts: np.ndarray, normals) -> MeanCurvatureResult:
-        pts, nrm, _, acc = self._normals(pts, normals)
+        pts, nrm, _, acc = self._normals(pts, normals, tangents=False)
         for_chunks(_trace_chunk, self.faces.shape[0], pts, self.faces, nrm, acc)
         n = self.n_vertices
         ren = self.renumbering

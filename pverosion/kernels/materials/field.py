@@ -19,7 +19,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import map_coordinates
 
 from pverosion.kernels.materials.bsp import (
     BSP_METHODS,
@@ -254,12 +253,16 @@ class VolumeMaterials(MaterialField):
         if self.interpolation == "nearest":
             hardness = self.hardness_grid[nearest[0], nearest[1], nearest[2]]
         else:
+            from scipy.ndimage import map_coordinates  # SciPy (0.3 s to import) only when a field is sampled
+
             hardness = map_coordinates(self.hardness_grid, np.clip(index, 0, upper), order=1, mode="nearest")
         return MaterialSample(material, hardness)
 
 
 def _oriented(verts: np.ndarray, faces: np.ndarray, values: np.ndarray) -> np.ndarray:
     """Triangles (T, 3, 3) in index space, wound so the normal points to lower values."""
+    from scipy.ndimage import map_coordinates
+
     tri = verts[faces]
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(normal, axis=1, keepdims=True)

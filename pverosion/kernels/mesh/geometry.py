@@ -72,8 +72,13 @@ def face_normal_terms(points, faces, f, max_weights):
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def add_normal_chunk(points, faces, max_weights, acc, c):
-    """Add the weighted normals of chunk ``c`` of the faces to their corners in ``acc[c, :, :3]`` (``acc`` is
-    (C, V, 3) or wider)."""
+    """Zero ``acc[c]`` and add the weighted normals of chunk ``c`` of the faces to their corners in
+    ``acc[c, :, :3]`` (``acc`` is (C, V, 3) or wider).
+
+    Called with a Python bool from :func:`vertex_normals` and the curvature
+    operator alike, so that one compiled specialisation serves both.
+    """
+    acc[c] = 0.0
     start, stop = chunk_range(faces.shape[0], c)
     for f in range(start, stop):
         ok, n, w0, w1, w2 = face_normal_terms(points, faces, f, max_weights)
@@ -87,21 +92,21 @@ def add_normal_chunk(points, faces, max_weights, acc, c):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _normalise_range(acc, out, start, stop):
-    """Unit sums over the chunks of ``acc`` for vertices ``start`` to ``stop`` (zero where the sum is zero)."""
+def normalise_range(acc, out, start, stop):
+    """Unit sums over the chunks of ``acc[:, :, :3]`` for vertices ``start`` to ``stop`` (zero where the sum is
+    zero)."""
     for i in range(start, stop):
         total = (chunk_total(acc, i, 0), chunk_total(acc, i, 1), chunk_total(acc, i, 2))
         length = v3.norm(total)
-        if length > 0.0:
-            v3.store(out, i, v3.scale(total, 1.0 / length))
+        v3.store(out, i, v3.scale(total, 1.0 / length) if length > 0.0 else (0.0, 0.0, 0.0))
 
 
 def _scatter_normals(points: np.ndarray, faces: np.ndarray, max_weights: bool) -> np.ndarray:
     n_vertices = points.shape[0]
-    acc = np.zeros((CHUNKS, n_vertices, 3))
+    acc = np.empty((CHUNKS, n_vertices, 3))
     for_chunks(add_normal_chunk, faces.shape[0], points, faces, max_weights, acc)
-    out = np.zeros((n_vertices, 3))
-    for_ranges(_normalise_range, n_vertices, acc, out)
+    out = np.empty((n_vertices, 3))
+    for_ranges(normalise_range, n_vertices, acc, out)
     return out
 
 

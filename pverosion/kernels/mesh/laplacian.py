@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import scipy.sparse as sp
 from numba import njit
 
 from pverosion.kernels._threads import for_ranges
 from pverosion.kernels.mesh.topology import one_ring
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 __all__ = ["laplacian_vectors", "uniform_laplacian"]
 
@@ -61,6 +65,8 @@ def uniform_laplacian(faces: np.ndarray, n_vertices: int, *, edges: np.ndarray |
     scipy.sparse.csr_matrix, shape (V, V)
         Rows of isolated vertices are zero.
     """
+    import scipy.sparse as sp  # SciPy only where a matrix is built, not for the kernels of this module
+
     indptr, indices = one_ring(faces, n_vertices, edges=edges)
     out_ptr, out_idx, data = _with_diagonal(indptr, indices)
     return sp.csr_matrix((data, out_idx, out_ptr), shape=(n_vertices, n_vertices))

@@ -447,17 +447,6 @@ def _merged_rows(indptr, indices, rows, extra, near, value_map, drop_self):
 
 
 @njit(cache=True, error_model="numpy")
-def _halfedges_between(faces, f, v, w):
-    """Half-edges of face f between vertices v and w (either way)."""
-    n = 0
-    for k in range(3):
-        a, b = faces[f, k], faces[f, (k + 1) % 3]
-        if (a == v and b == w) or (a == w and b == v):
-            n += 1
-    return n
-
-
-@njit(cache=True, error_model="numpy")
 def _ring_edges(ring_ptr, ring_idx, fixed, faces, inc_ptr, inc_faces):
     """Edges (v, w), v < w, in lexicographic order from the sorted one-rings, and whether two faces use each (an
     edge at a vertex that is not fixed always has two)."""
@@ -467,7 +456,7 @@ def _ring_edges(ring_ptr, ring_idx, fixed, faces, inc_ptr, inc_faces):
             if ring_idx[s] > v:
                 n_edges += 1
     edges = np.empty((n_edges, 2), np.int64)
-    usable = np.ones(n_edges, np.bool_)
+    usable = np.empty(n_edges, np.bool_)
     e = 0
     for v in range(ring_ptr.shape[0] - 1):
         for s in range(ring_ptr[v], ring_ptr[v + 1]):
@@ -475,11 +464,15 @@ def _ring_edges(ring_ptr, ring_idx, fixed, faces, inc_ptr, inc_faces):
             if w <= v:
                 continue
             edges[e, 0], edges[e, 1] = v, w
-            if fixed[v] and fixed[w]:
+            uses = 2
+            if fixed[v] and fixed[w]:  # count the half-edges between v and w in the faces of v
                 uses = 0
                 for t in range(inc_ptr[v], inc_ptr[v + 1]):
-                    uses += _halfedges_between(faces, inc_faces[t], v, w)
-                usable[e] = uses == 2
+                    f = inc_faces[t]
+                    for k in range(3):
+                        a, b = faces[f, k], faces[f, (k + 1) % 3]
+                        uses += (a == v and b == w) or (a == w and b == v)
+            usable[e] = uses == 2
             e += 1
     return edges, usable
 

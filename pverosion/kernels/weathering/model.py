@@ -25,10 +25,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from numba import njit
 
-from pverosion.kernels import _vec3 as v3
-from pverosion.kernels._threads import for_ranges
 from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS, normalize_symmetric
 from pverosion.kernels.curvature.operator import MeanCurvatureOperator
 from pverosion.kernels.materials.erodibility import Erodibility, check_erodibility, erodibility_now
@@ -36,8 +33,8 @@ from pverosion.kernels.mesh.geometry import average_edge_length
 from pverosion.kernels.mesh.laplacian import laplacian_vectors
 from pverosion.kernels.mesh.locality import locality_renumbering
 from pverosion.kernels.solver.mesh_evolution import GuardedMeshSolver, volume_area
-from pverosion.kernels.tolerances import FLAT_CURVATURE
 from pverosion.kernels.validation import as_triangle_mesh
+from pverosion.kernels.weathering.displacement import displace
 
 __all__ = ["DIRECTIONS", "STAT_NAMES", "WeatheringSolver"]
 
@@ -46,39 +43,6 @@ DIRECTIONS = ("laplacian", "normal")
 
 STAT_NAMES = ("volume", "area", "mean_abs_curvature", "max_abs_curvature", "eroded_volume", "retries", "collapses")
 """Per-step statistics recorded by :class:`WeatheringSolver` (one row per step, step 0 first)."""
-
-
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _displace_range(points, direction, unit, h_norm, h_raw, e_avg, power, length, factor, fixed, displacement, out,
-                    start, stop):
-    """Steps of vertices ``start`` to ``stop`` (see :func:`_displace`), written to ``out`` and added to
-    ``displacement``."""
-    for i in range(start, stop):
-        if fixed[i] or h_norm[i] <= 0.0 or h_raw[i] * e_avg <= FLAT_CURVATURE or factor[i] == 0.0:
-            continue
-        vec = v3.row(direction, i)
-        if unit:
-            size = v3.norm(vec)
-            if size == 0.0:
-                continue
-            vec = v3.scale(vec, 1.0 / size)
-        step = v3.scale(vec, (h_norm[i] ** power) * length * factor[i])
-        v3.store(out, i, v3.add(v3.row(points, i), step))
-        for d in range(3):
-            displacement[i, d] += step[d]
-
-
-def _displace(points, direction, unit, h_norm, h_raw, e_avg, power, length, factor, fixed, displacement):
-    """Points after one step along ``direction`` (made unit length when ``unit``).
-
-    Adds each vertex's step to ``displacement`` in place.
-    """
-    out = points.copy()
-    for_ranges(_displace_range, points.shape[0], points, direction, unit, h_norm, h_raw, e_avg, power, length, factor,
-               fixed, displacement, out)
-    return out
 
 
 class WeatheringSolver(GuardedMeshSolver):
@@ -210,7 +174,7 @@ class WeatheringSolver(GuardedMeshSolver):
             h_norm = normalize_symmetric(h)
         else:
             h_norm = normalize_symmetric(h, where=self._interior, always=True)
-        self.points = _displace(self.points, direction, self.direction == "laplacian", h_norm, h,
+        self.points = displace(self.points, direction, self.direction == "laplacian", h_norm, h,
                                 e_avg, self.power, e_avg / self.step_divisor, factor, self._fixed, self.displacement)
         clock = self._lap("displacement", clock)
         if self.min_edge_ratio > 0.0:

@@ -1,0 +1,48 @@
+"""The displacement of one weathering step (Skorkovská 2019, eqs. 3-5), in a module of its own.
+
+The step kernel lives apart from :mod:`~pverosion.kernels.weathering.model`
+so that a process compiling it ahead of the stage
+(:mod:`pverosion._precompile`) imports it without the solver and its
+dependencies.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._threads import for_ranges
+from pverosion.kernels.tolerances import FLAT_CURVATURE
+
+__all__ = ["displace"]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _displace_range(points, direction, unit, h_norm, h_raw, e_avg, power, length, factor, fixed, displacement, out,
+                    start, stop):
+    """Steps of vertices ``start`` to ``stop`` (see :func:`displace`), written to ``out`` and added to
+    ``displacement``."""
+    for i in range(start, stop):
+        if fixed[i] or h_norm[i] <= 0.0 or h_raw[i] * e_avg <= FLAT_CURVATURE or factor[i] == 0.0:
+            continue
+        vec = v3.row(direction, i)
+        if unit:
+            size = v3.norm(vec)
+            if size == 0.0:
+                continue
+            vec = v3.scale(vec, 1.0 / size)
+        step = v3.scale(vec, (h_norm[i] ** power) * length * factor[i])
+        v3.store(out, i, v3.add(v3.row(points, i), step))
+        for d in range(3):
+            displacement[i, d] += step[d]
+
+
+def displace(points, direction, unit, h_norm, h_raw, e_avg, power, length, factor, fixed, displacement):
+    """Points after one step along ``direction`` (made unit length when ``unit``).
+
+    Adds each vertex's step to ``displacement`` in place.
+    """
+    out = points.copy()
+    for_ranges(_displace_range, points.shape[0], points, direction, unit, h_norm, h_raw, e_avg, power, length, factor,
+               fixed, displacement, out)
+    return out
