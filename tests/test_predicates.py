@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from pverosion.kernels.exact.predicates import (
-    _orient2d_exact,
-    _orient3d_exact,
+    _exact_orient2d,
+    _exact_orient3d,
     orient2d,
     orient2d_batch,
     orient3d,
@@ -259,13 +259,13 @@ def test_exact_fallback_alone_agrees_with_fractions():
     cases3 = np.concatenate([cases3, rng.choice(edge, size=(200, 4, 3))])
     for q in cases2:
         exact = exact_orient2d(*q)
-        value = _orient2d_exact(*q.ravel())
+        value = _exact_orient2d(*q.ravel())
         assert _sign(value) == _sign(exact)
         if exact != 0:  # the returned magnitude is the exact value, rounded
             assert abs(Fraction(value) / exact - 1) < Fraction(1, 10**14)
     for q in cases3:
         exact = exact_orient3d(*q)
-        value = _orient3d_exact(*q.ravel())
+        value = _exact_orient3d(*q.ravel())
         assert _sign(value) == _sign(exact)
         if exact != 0:
             assert abs(Fraction(value) / exact - 1) < Fraction(1, 10**14)
