@@ -27,6 +27,9 @@ __all__ = ["ORIENTATIONS", "Orientation", "SortedOrientation", "orient_faces", "
 ORIENTATIONS = ("outward", "inward", "keep")
 """Accepted values of the ``orientation`` option."""
 
+APPLY_FACES_PER_RANGE = 1 << 17
+"""Smallest range of faces a thread reverses: a copy of fewer faces costs less than handing it to a thread."""
+
 
 @dataclass(frozen=True)
 class Orientation:
@@ -368,7 +371,7 @@ def _apply_range(faces, flip, out, start, stop):
 def _apply(faces: np.ndarray, flip: np.ndarray) -> np.ndarray:
     """``faces`` with the faces where ``flip`` is set reversed (their last two corners swapped)."""
     out = np.empty_like(faces)
-    for_ranges(_apply_range, faces.shape[0], faces, flip, out)
+    for_ranges(_apply_range, faces.shape[0], faces, flip, out, min_items=APPLY_FACES_PER_RANGE)
     return out
 
 
