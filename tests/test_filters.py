@@ -1,9 +1,13 @@
+import re
+
 import numpy as np
 import pytest
 import pyvista as pv
+from vtkmodules.vtkCommonCore import vtkObject
 from vtkmodules.vtkFiltersCore import vtkTriangleFilter
 from vtkmodules.vtkFiltersSources import vtkSphereSource
 
+import pverosion
 from pverosion.filters import ALL_FILTERS, Curvature
 from pverosion.kernels import InvalidMeshError
 
@@ -76,3 +80,31 @@ def test_every_filter_declares_its_metadata():
         for p in cls.PARAMS:
             assert p.doc and p.validate(p.default) == p.default
             assert hasattr(cls, f"Set{p.camel}") and hasattr(cls, f"Get{p.camel}")
+
+
+@pytest.mark.parametrize("orientation", ["outward", "keep"])
+@pytest.mark.parametrize("defect", ["nan point", "index past the points"])
+def test_curvature_refuses_a_bad_surface_from_every_entry(orientation, defect):
+    sphere = pv.Icosphere(nsub=2)
+    points, faces = np.array(sphere.points, float), sphere.regular_faces.copy()
+    if defect == "nan point":
+        points[5, 1] = np.nan
+        message = "NaN or infinite coordinates at 1 vertices"
+    else:
+        faces[7, 2] = len(points) + 3
+        message = rf"vertex indices in \[0, {len(points) + 3}\] but the mesh has {len(points)} points"
+    bad = pv.PolyData.from_regular_faces(points, faces)
+    kept_points, kept_faces = np.array(bad.points), np.array(bad.faces)
+    with pytest.raises(InvalidMeshError, match=message):
+        pverosion.curvature(bad, orientation=orientation)
+    alg = Curvature(orientation=orientation)
+    alg.SetInputDataObject(0, bad)
+    shown = vtkObject.GetGlobalWarningDisplay()
+    vtkObject.GlobalWarningDisplayOff()
+    try:
+        alg.Update()  # a plain VTK pipeline: the executive reports failure, the filter keeps the error
+    finally:
+        vtkObject.SetGlobalWarningDisplay(shown)
+    assert isinstance(alg.last_error, InvalidMeshError) and re.search(message, str(alg.last_error))
+    np.testing.assert_array_equal(bad.points, kept_points)
+    np.testing.assert_array_equal(bad.faces, kept_faces)

@@ -26,7 +26,7 @@ from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkMultiBlockDataSet, vt
 from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline as SDDP
 
 from pverosion._runtime import stage_run
-from pverosion.kernels.validation import InvalidMeshError, as_points
+from pverosion.kernels.validation import InvalidMeshError, as_faces, as_points
 from pverosion.limits import check_memory
 
 __all__ = [
@@ -38,6 +38,7 @@ __all__ = [
     "numbers_text",
     "output_times",
     "parse_numbers",
+    "polydata_triangle_mesh",
     "polydata_triangles",
     "replace_triangles",
     "set_field_value",
@@ -647,8 +648,11 @@ def _make_getter(name):
     return getter
 
 
-def polydata_triangles(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:
+def polydata_triangles(mesh: vtkPolyData, *, check_points: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Points (V, 3) and triangles (F, 3) of a vtkPolyData, without copying where possible.
+
+    With ``check_points=False`` the coordinates are not tested for NaN or
+    infinite values (for callers that check them anyway).
 
     Raises
     ------
@@ -675,17 +679,41 @@ def polydata_triangles(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:
         )
     faces = numpy_support.vtk_to_numpy(polys.GetConnectivityArray()).reshape(-1, 3)
     points = numpy_support.vtk_to_numpy(mesh.GetPoints().GetData())
-    if not np.isfinite(points).all():
+    if check_points and not np.isfinite(points).all():
         as_points(points)  # raises InvalidMeshError naming the vertices
     return points, faces
 
 
-def replace_triangles(mesh: vtkPolyData, faces: np.ndarray) -> None:
-    """Replace the polygons of ``mesh`` by the triangles ``faces`` (F, 3)."""
-    connectivity = numpy_support.numpy_to_vtk(np.ascontiguousarray(faces, dtype=np.int64).ravel(), deep=True,
-                                              array_type=vtkIdTypeArray().GetDataType())
-    offsets = numpy_support.numpy_to_vtk(np.arange(0, 3 * len(faces) + 1, 3, dtype=np.int64), deep=True,
-                                         array_type=vtkIdTypeArray().GetDataType())
+def polydata_triangle_mesh(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:
+    """Points (V, 3) as contiguous float64 and triangles (F, 3) as contiguous int64, checked once.
+
+    :func:`polydata_triangles` followed by the checks of
+    :func:`~pverosion.kernels.validation.as_triangle_mesh`, without testing
+    the coordinates twice. The arrays are views of the mesh's where their
+    types allow (float64 points, 64-bit ids): read them, never write them.
+
+    Raises
+    ------
+    InvalidMeshError
+        As :func:`polydata_triangles`, or if a triangle names a point that
+        does not exist.
+    """
+    points, faces = polydata_triangles(mesh, check_points=False)
+    return as_points(points), as_faces(faces, len(points))
+
+
+def replace_triangles(mesh: vtkPolyData, faces: np.ndarray, *, copy: bool = True) -> None:
+    """Replace the polygons of ``mesh`` by the triangles ``faces`` (F, 3).
+
+    With ``copy=False`` the cells share the memory of ``faces`` when it is a
+    contiguous int64 array (and keep it alive): for fresh arrays that nothing
+    modifies afterwards.
+    """
+    id_type = vtkIdTypeArray().GetDataType()
+    connectivity = numpy_support.numpy_to_vtk(np.ascontiguousarray(faces, dtype=np.int64).ravel(), deep=copy,
+                                              array_type=id_type)
+    offsets = numpy_support.numpy_to_vtk(np.arange(0, 3 * len(faces) + 1, 3, dtype=np.int64), deep=False,
+                                         array_type=id_type)
     cells = vtkCellArray()
     cells.SetData(offsets, connectivity)
     mesh.SetPolys(cells)

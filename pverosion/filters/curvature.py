@@ -7,7 +7,7 @@ import numpy as np
 from pverosion.filters.base import (
     ErosionFilter,
     Param,
-    polydata_triangles,
+    polydata_triangle_mesh,
     replace_triangles,
     set_field_value,
     set_point_array,
@@ -16,7 +16,6 @@ from pverosion.kernels.curvature.normalize import NORMALIZATIONS, normalize_curv
 from pverosion.kernels.curvature.operator import CurvatureOperator, principal_curvatures
 from pverosion.kernels.mesh.locality import locality_renumbering
 from pverosion.kernels.mesh.orientation import ORIENTATIONS, orient_sorted
-from pverosion.kernels.validation import as_triangle_mesh
 
 __all__ = ["Curvature"]
 
@@ -54,8 +53,7 @@ class Curvature(ErosionFilter):
 
     def execute(self, inp, out) -> None:
         """Compute the curvature arrays of ``inp`` into ``out``."""
-        points, faces = polydata_triangles(inp)
-        points, faces = as_triangle_mesh(points, faces)
+        points, faces = polydata_triangle_mesh(inp)
         mode = self.get_option("orientation")
         if mode == "keep":
             n_flipped = 0
@@ -73,7 +71,7 @@ class Curvature(ErosionFilter):
             result = operator(points)
         out.ShallowCopy(inp)
         if n_flipped:
-            replace_triangles(out, oriented.input_faces(faces))
+            replace_triangles(out, oriented.input_faces(faces), copy=False)  # a fresh array: shared, not copied
         mean = result.mean  # the result arrays are fresh: the output shares their memory instead of copying it
         set_point_array(out, "mean_curvature", mean, copy=False)
         set_point_array(out, "gaussian_curvature", result.gaussian, copy=False)

@@ -27,6 +27,9 @@ __all__ = ["ORIENTATIONS", "Orientation", "SortedOrientation", "orient_faces", "
 ORIENTATIONS = ("outward", "inward", "keep")
 """Accepted values of the ``orientation`` option."""
 
+APPLY_FACES_PER_RANGE = 1 << 17
+"""Smallest range of faces a thread reverses: a copy of fewer faces costs less than handing it to a thread."""
+
 
 @dataclass(frozen=True)
 class Orientation:
@@ -176,36 +179,39 @@ def _volume_chunk(points, faces, flip, component, others, origin, volume, rims, 
 
 
 @njit(cache=True, error_model="numpy")
-def _hole_cones(points, faces, flip, component, others, origin, volume, parent, centre, count):
+def _hole_cones(points, faces, flip, component, others, origin, volume, rim, parent, centre, count):
     """Add to ``volume`` (six times) the cone from the centroid of every hole's rim over the rim's edges.
 
-    Scratch: ``parent`` (V,) must be ``arange(V)``, ``centre`` (V, 3) and ``count`` (V,) zero.
+    Scratch: ``rim`` (R,) for the R boundary half-edges (``others`` zero), ``parent`` (V,) must be
+    ``arange(V)``, ``centre`` (V, 3) and ``count`` (V,) zero.
     """
+    n = 0
     for h in range(others.shape[0]):
         if others[h] == 0:
-            f, k = h // 3, h % 3
-            ra = _find(parent, faces[f, k])
-            rb = _find(parent, faces[f, (k + 1) % 3])
-            parent[ra] = rb
-    for h in range(others.shape[0]):
-        if others[h] == 0:
-            a = faces[h // 3, h % 3]
-            r = _find(parent, a)
-            for d in range(3):
-                centre[r, d] += points[a, d]
-            count[r] += 1.0
-    for h in range(others.shape[0]):
-        if others[h] == 0:
-            f = h // 3
-            a = faces[f, h % 3]
-            b = faces[f, (h % 3 + 1) % 3]
-            if flip[f]:
-                a, b = b, a
-            r = _find(parent, a)
-            apex = v3.sub(v3.scale(v3.row(centre, r), 1.0 / count[r]), origin)
-            pa = v3.sub(v3.row(points, a), origin)
-            pb = v3.sub(v3.row(points, b), origin)
-            volume[component[f]] += v3.dot(pb, v3.cross(pa, apex))
+            rim[n] = h
+            n += 1
+    for h in rim:
+        f, k = h // 3, h % 3
+        ra = _find(parent, faces[f, k])
+        rb = _find(parent, faces[f, (k + 1) % 3])
+        parent[ra] = rb
+    for h in rim:
+        a = faces[h // 3, h % 3]
+        r = _find(parent, a)
+        for d in range(3):
+            centre[r, d] += points[a, d]
+        count[r] += 1.0
+    for h in rim:
+        f = h // 3
+        a = faces[f, h % 3]
+        b = faces[f, (h % 3 + 1) % 3]
+        if flip[f]:
+            a, b = b, a
+        r = _find(parent, a)
+        apex = v3.sub(v3.scale(v3.row(centre, r), 1.0 / count[r]), origin)
+        pa = v3.sub(v3.row(points, a), origin)
+        pb = v3.sub(v3.row(points, b), origin)
+        volume[component[f]] += v3.dot(pb, v3.cross(pa, apex))
 
 
 def _closed_volumes(points: np.ndarray, faces: np.ndarray, flip: np.ndarray, component: np.ndarray, n_comp: int,
@@ -218,10 +224,11 @@ def _closed_volumes(points: np.ndarray, faces: np.ndarray, flip: np.ndarray, com
     rims = np.zeros(CHUNKS, np.int64)
     for_chunks(_volume_chunk, faces.shape[0], points, faces, flip, component, others, origin, chunks, rims)
     volume = chunks.sum(axis=0)
-    if rims.any():
+    n_rim = int(rims.sum())
+    if n_rim:
         n_vertices = points.shape[0]
-        _hole_cones(points, faces, flip, component, others, origin, volume, np.arange(n_vertices),
-                    np.zeros((n_vertices, 3)), np.zeros(n_vertices))
+        _hole_cones(points, faces, flip, component, others, origin, volume, np.empty(n_rim, np.int64),
+                    np.arange(n_vertices), np.zeros((n_vertices, 3)), np.zeros(n_vertices))
     return volume / 6.0, extent
 
 
@@ -364,7 +371,7 @@ def _apply_range(faces, flip, out, start, stop):
 def _apply(faces: np.ndarray, flip: np.ndarray) -> np.ndarray:
     """``faces`` with the faces where ``flip`` is set reversed (their last two corners swapped)."""
     out = np.empty_like(faces)
-    for_ranges(_apply_range, faces.shape[0], faces, flip, out)
+    for_ranges(_apply_range, faces.shape[0], faces, flip, out, min_items=APPLY_FACES_PER_RANGE)
     return out
 
 

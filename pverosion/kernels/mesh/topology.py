@@ -393,14 +393,17 @@ def _match_sorted_range(rows, starts, far_end, far_half, partner, others, start,
                 if ends[t] == end:
                     count += 1
             if count == 0:  # a boundary edge: no twin, no other face
+                partner[halves[s]] = -1
+                others[halves[s]] = 0
                 continue
+            twin = -1  # the other half-edge of a manifold edge, else -1
             for t in range(s + 1, n):
                 if ends[t] == end:
                     ends[t] = -1
                     others[halves[t]] = count
-                    if count == 1:
-                        partner[halves[t]] = halves[s]
-                        partner[halves[s]] = halves[t]
+                    partner[halves[t]] = halves[s] if count == 1 else -1
+                    twin = halves[t] if count == 1 else -1
+            partner[halves[s]] = twin
             others[halves[s]] = count
 
 
@@ -429,8 +432,8 @@ def _sorted_twins_of_triangles(faces: np.ndarray, n_vertices: int) -> tuple[np.n
     rows = np.empty_like(faces)
     far_end, far_half = np.empty(n_faces, np.int32), np.empty(n_faces, np.int32)
     for_ranges(_fill_parts, parts, faces, bounds, lows, mids, order, rows, far_end, far_half, min_items=1)
-    partner = np.full(3 * n_faces, -1, np.int64)
-    others = np.zeros(3 * n_faces, np.int64)
+    partner = np.empty(3 * n_faces, np.int64)  # every half-edge is in the group of one edge: all are written
+    others = np.empty(3 * n_faces, np.int64)
     for_ranges(_match_sorted_range, n_vertices, rows, starts, far_end, far_half, partner, others)
     return order, rows, partner, others
 
