@@ -197,10 +197,13 @@ def _hash(ix, iy, iz, size):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _box_range(points, faces, lo, hi, ok, side, start, stop):
-    """Boxes of faces ``start`` to ``stop``, whether they are non-degenerate and their largest side."""
+def _box_range(points, faces, order, local, lo, hi, ok, side, start, stop):
+    """Faces ``start`` to ``stop`` of ``local`` = ``faces[order]``: their vertices, boxes, whether they are
+    non-degenerate and their largest side."""
     for f in range(start, stop):
-        p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
+        g = order[f]
+        local[f, 0], local[f, 1], local[f, 2] = faces[g, 0], faces[g, 1], faces[g, 2]
+        p0, p1, p2 = v3.row(points, local[f, 0]), v3.row(points, local[f, 1]), v3.row(points, local[f, 2])
         for d in range(3):
             lo[f, d] = min(p0[d], p1[d], p2[d])
             hi[f, d] = max(p0[d], p1[d], p2[d])
@@ -241,20 +244,24 @@ def _key_range(lo, hi, ok, origin, h, inv_h, keys, cell, start, stop):
                 cell[f, 3 + d] = int((hi[f, d] - origin[d]) * inv_h)
 
 
-def _face_boxes(points: np.ndarray, faces: np.ndarray) -> tuple:
-    """Boxes of the faces (F, 3) twice, whether they are non-degenerate (F,), Morton keys (F,), the number of
-    non-degenerate faces and the range of grid cells every box covers (F, 6) (set for non-degenerate faces)."""
+def _face_boxes(points: np.ndarray, faces: np.ndarray, order: np.ndarray | None = None) -> tuple:
+    """The faces in ``order`` (by default as given) (F, 3), their boxes (F, 3) twice, whether they are
+    non-degenerate (F,), Morton keys (F,), the number of non-degenerate faces and the range of grid cells every
+    box covers (F, 6) (set for non-degenerate faces)."""
     n = faces.shape[0]
+    if order is None:
+        order = np.arange(n)
+    local = np.empty_like(faces)
     lo = np.empty((n, 3))
     hi = np.empty((n, 3))
     ok = np.zeros(n, np.bool_)
     side = np.zeros(n)
-    for_ranges(_box_range, n, points, faces, lo, hi, ok, side)
+    for_ranges(_box_range, n, points, faces, order, local, lo, hi, ok, side)
     origin, h, n_ok = _grid_frame(lo, ok, side)
     keys = np.zeros(n, np.int64)
     cell = np.zeros((n, 6), np.int64)
     for_ranges(_key_range, n, lo, hi, ok, origin, h, 1.0 / h, keys, cell)
-    return lo, hi, ok, keys, n_ok, cell
+    return local, lo, hi, ok, keys, n_ok, cell
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -642,7 +649,7 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     wanted = np.zeros(0, bool) if query is None else np.asarray(query, dtype=bool)
     if query is not None and wanted.shape != (len(fcs),):
         raise ValueError(f"query must have shape ({len(fcs)},); got {wanted.shape}")
-    lo, hi, ok, _, n_ok, cell = _face_boxes(pts, fcs)
+    _, lo, hi, ok, _, n_ok, cell = _face_boxes(pts, fcs)
     if query is not None and n_ok:
         ok, n_ok = _near_query(lo, hi, ok, wanted)
     if n_ok == 0:
@@ -670,7 +677,7 @@ def spatial_order(points, faces) -> np.ndarray:
     numpy.ndarray, shape (F,), int64
     """
     pts, fcs = as_triangle_mesh(points, faces)
-    return np.argsort(_face_boxes(pts, fcs)[3], kind="stable")
+    return np.argsort(_face_boxes(pts, fcs)[4], kind="stable")
 
 
 def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
@@ -702,12 +709,13 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
     order = np.asarray(order, dtype=np.int64)
     if order.shape != (len(fcs),):
         raise ValueError(f"order must have shape ({len(fcs)},); got {order.shape}")
+    if order.min(initial=0) < 0 or order.max(initial=-1) >= len(fcs):
+        raise ValueError(f"order must hold face indices below {len(fcs)}")
     # visit the faces in Morton order, so neighbours in space are near in memory
-    local = fcs[order]
-    lo, hi, ok, _, n_ok, cell = _face_boxes(pts, local)
+    local, lo, hi, ok, _, n_ok, cell = _face_boxes(pts, fcs, order)
     hits = np.zeros(len(fcs), bool)
     local_query = q[order]
-    if query is not None and n_ok:  # the grid holds few faces when the query is local (vertices moved in one place)
+    if query is not None and n_ok and not q.all():  # few faces near a local query (vertices moved in one place)
         ok, n_ok = _near_query(lo, hi, ok, local_query)
     if n_ok == 0:
         return hits
