@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from pverosion.kernels import _vec3 as v3
-from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges, range_count
+from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges
 from pverosion.kernels.tolerances import COPLANAR
 from pverosion.kernels.validation import as_triangle_mesh
 
@@ -273,83 +273,61 @@ def _face_boxes(points: np.ndarray, faces: np.ndarray, order: np.ndarray | None 
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _bucket_range(cell, ok, offset, size, bucket, count, parts, first, last):
-    """Buckets of the grid entries of the faces of parts ``first`` to ``last`` (of ``parts`` equal face ranges):
-    every cell their boxes cover, in x, y, z loop order, from ``offset[f]`` on; and in ``count[p]`` (zeros on
-    entry) the number of part p's entries in each bucket."""
-    n = cell.shape[0]
-    for p in range(first, last):
-        for f in range(p * n // parts, (p + 1) * n // parts):
-            if not ok[f]:
-                continue
-            k = offset[f]
-            for ix in range(cell[f, 0], cell[f, 3] + 1):
-                for iy in range(cell[f, 1], cell[f, 4] + 1):
-                    for iz in range(cell[f, 2], cell[f, 5] + 1):
-                        b = _hash(ix, iy, iz, size)
-                        bucket[k] = b
-                        count[p, b] += 1
-                        k += 1
+def _bucket_range(cell, ok, offset, size, bucket, start, stop):
+    """Buckets of the grid entries of faces ``start`` to ``stop`` (every cell their boxes cover, in x, y, z loop
+    order), from ``offset[f]`` on."""
+    for f in range(start, stop):
+        if not ok[f]:
+            continue
+        k = offset[f]
+        for ix in range(cell[f, 0], cell[f, 3] + 1):
+            for iy in range(cell[f, 1], cell[f, 4] + 1):
+                for iz in range(cell[f, 2], cell[f, 5] + 1):
+                    bucket[k] = _hash(ix, iy, iz, size)
+                    k += 1
 
 
 @njit(cache=True, error_model="numpy")
-def _bucket_heads(count):
-    """Bucket starts (size + 1,) of the grid entries grouped by bucket, each bucket's entries in part order; and
-    in ``count`` (parts, size) (the parts' entry counts on entry) the first slot of each part in each bucket."""
-    parts, size = count.shape
-    start = np.empty(size + 1, np.int64)
-    k = 0
+def _bucket_fill(cell, ok, query, bucket, size):
+    """The grid entries grouped by bucket (``bucket``: each entry's, in face and loop order; stable): bucket starts
+    (size + 1,), faces, packed cell keys and flags (bits 0-2: the cell is the face's lowest along x, y, z; bit 3:
+    the face is queried)."""
+    n = bucket.shape[0]
+    start = np.zeros(size + 1, np.int64)
+    for k in range(n):
+        start[bucket[k] + 1] += 1
     for b in range(size):
-        start[b] = k
-        for p in range(parts):
-            c = count[p, b]
-            count[p, b] = k
-            k += c
-    start[size] = k
-    return start
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _bucket_fill(cell, ok, query, offset, bucket, head, parts, entries, cells, flags, first, last):
-    """Write the grid entries of the faces of parts ``first`` to ``last`` (of ``parts`` equal face ranges) in
-    face order from each part's slot ``head[p]`` in their bucket: faces, packed cell keys and flags (bits 0-2:
-    the cell is the face's lowest along x, y, z; bit 3: the face is queried)."""
-    n = cell.shape[0]
-    for p in range(first, last):
-        for f in range(p * n // parts, (p + 1) * n // parts):
-            if not ok[f]:
-                continue
-            queried = 8 if query[f] else 0
-            x0, y0, z0, x1, y1, z1 = cell[f, 0], cell[f, 1], cell[f, 2], cell[f, 3], cell[f, 4], cell[f, 5]
-            k = offset[f]
-            for ix in range(x0, x1 + 1):
-                for iy in range(y0, y1 + 1):
-                    for iz in range(z0, z1 + 1):
-                        b = bucket[k]
-                        i = head[p, b]
-                        entries[i] = f
-                        cells[i] = _key(ix, iy, iz)
-                        flags[i] = queried | (1 if ix == x0 else 0) | (2 if iy == y0 else 0) | (4 if iz == z0 else 0)
-                        head[p, b] = i + 1
-                        k += 1
+        start[b + 1] += start[b]
+    fill = start[:-1].copy()
+    entries = np.empty(n, np.int64)
+    cells = np.empty(n, np.int64)
+    flags = np.empty(n, np.int8)
+    k = 0
+    for f in range(cell.shape[0]):
+        if not ok[f]:
+            continue
+        queried = 8 if query[f] else 0
+        x0, y0, z0, x1, y1, z1 = cell[f, 0], cell[f, 1], cell[f, 2], cell[f, 3], cell[f, 4], cell[f, 5]
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
+                for iz in range(z0, z1 + 1):
+                    i = fill[bucket[k]]
+                    entries[i] = f
+                    cells[i] = _key(ix, iy, iz)
+                    flags[i] = queried | (1 if ix == x0 else 0) | (2 if iy == y0 else 0) | (4 if iz == z0 else 0)
+                    fill[bucket[k]] = i + 1
+                    k += 1
+    return start, entries, cells, flags
 
 
 def _build_grid(cell: np.ndarray, offset: np.ndarray, ok: np.ndarray, query: np.ndarray, size: int) -> tuple:
     """Spatial hash of ``size`` buckets: the non-degenerate faces covering each bucket's cells (ranges ``cell``
-    (F, 6), first entries ``offset`` (F + 1,)), in face order, with each entry's packed cell key and flags (bits 0-2: the cell is the face's
-    lowest along x, y, z; bit 3: ``query`` (F,) holds for the face): bucket starts (size + 1,), faces, keys and
-    flags. Each thread counts and writes the entries of its range of faces; the table does not depend on the
-    number of threads."""
+    (F, 6), first entries ``offset`` (F + 1,)), in face order, with each entry's packed cell key and flags
+    (bits 0-2: the cell is the face's lowest along x, y, z; bit 3: ``query`` (F,) holds for the face)."""
     n = cell.shape[0]
-    m = int(offset[-1])
-    parts = range_count(n)
-    count = np.zeros((parts, size), np.int64)
-    bucket = np.empty(m, np.int32 if size < 2**31 else np.int64)
-    for_ranges(_bucket_range, parts, cell, ok, offset, size, bucket, count, parts, min_items=1)
-    start = _bucket_heads(count)
-    entries, cells, flags = np.empty(m, np.int64), np.empty(m, np.int64), np.empty(m, np.int8)
-    for_ranges(_bucket_fill, parts, cell, ok, query, offset, bucket, count, parts, entries, cells, flags, min_items=1)
-    return start, entries, cells, flags
+    bucket = np.empty(int(offset[-1]), np.int32 if size < 2**31 else np.int64)
+    for_ranges(_bucket_range, n, cell, ok, offset, size, bucket)  # the hashes, in parallel
+    return _bucket_fill(cell, ok, query, bucket, size)
 
 
 @njit(cache=True, error_model="numpy")
@@ -631,6 +609,14 @@ def _near_query(lo, hi, ok, query):
     return near, n
 
 
+def _entry_offsets(offset: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """First grid entries (F + 1,) of the faces still ``ok`` (F,) (``offset``: of a larger set), the entries of
+    the others dropped."""
+    count = np.diff(offset)
+    count[~ok] = 0
+    return np.concatenate(([0], np.cumsum(count)))
+
+
 def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     """Pairs of non-degenerate faces that may meet and share no edge (broad phase).
 
@@ -669,6 +655,7 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     _, lo, hi, ok, _, n_ok, cell, offset = _face_boxes(pts, fcs)
     if query is not None and n_ok:
         ok, n_ok = _near_query(lo, hi, ok, wanted)
+        offset = _entry_offsets(offset, ok)
     if n_ok == 0:
         return np.zeros((0, 2), np.int64)
     size = 4 * n_ok + 1
@@ -734,6 +721,7 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
     local_query = q[order]
     if query is not None and n_ok and not q.all():  # few faces near a local query (vertices moved in one place)
         ok, n_ok = _near_query(lo, hi, ok, local_query)
+        offset = _entry_offsets(offset, ok)
     if n_ok == 0:
         return hits
     size = 4 * n_ok + 1
