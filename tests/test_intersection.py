@@ -70,6 +70,29 @@ def test_pushed_vertex_is_detected_and_order_only_affects_speed():
     assert not intersecting_faces(points, faces, query=~fan & ~hits).any()
 
 
+def test_any_face_order_and_a_query_of_every_face_give_the_whole_check():
+    s = icosphere(1.0, 3)
+    points = np.array(s.points)
+    faces = s.regular_faces
+    points[0] = -1.5 * points[0]
+    hits = intersecting_faces(points, faces)
+    assert hits.any()
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        order = rng.permutation(len(faces))
+        assert np.array_equal(intersecting_faces(points, faces, order=order), hits)
+    assert np.array_equal(intersecting_faces(points, faces, query=np.ones(len(faces), bool)), hits)
+
+
+@pytest.mark.parametrize("bad", [-1, 10**6])
+def test_order_with_an_index_out_of_range_is_refused(bad):
+    s = icosphere(1.0, 2)
+    order = np.arange(len(s.regular_faces))
+    order[5] = bad
+    with pytest.raises(ValueError, match="order"):
+        intersecting_faces(s.points, s.regular_faces, order=order)
+
+
 def test_a_local_query_finds_exactly_the_pairs_with_its_faces():
     # two overlapping spheres: intersecting pairs all along a circle
     a = icosphere(1.0, 3)

@@ -197,10 +197,13 @@ def _hash(ix, iy, iz, size):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _box_range(points, faces, lo, hi, ok, side, start, stop):
-    """Boxes of faces ``start`` to ``stop``, whether they are non-degenerate and their largest side."""
+def _box_range(points, faces, order, local, lo, hi, ok, side, start, stop):
+    """Faces ``start`` to ``stop`` of ``local`` = ``faces[order]``: their vertices, boxes, whether they are
+    non-degenerate and their largest side."""
     for f in range(start, stop):
-        p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
+        g = order[f]
+        local[f, 0], local[f, 1], local[f, 2] = faces[g, 0], faces[g, 1], faces[g, 2]
+        p0, p1, p2 = v3.row(points, local[f, 0]), v3.row(points, local[f, 1]), v3.row(points, local[f, 2])
         for d in range(3):
             lo[f, d] = min(p0[d], p1[d], p2[d])
             hi[f, d] = max(p0[d], p1[d], p2[d])
@@ -228,43 +231,45 @@ def _grid_frame(lo, ok, side):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _key_range(lo, hi, ok, origin, h, inv_h, keys, cell, start, stop):
-    """Morton keys of the lowest grid cells of the boxes of faces ``start`` to ``stop``, and the ranges of grid
-    cells the boxes cover (lowest x, y, z, then highest)."""
+def _key_range(lo, hi, ok, origin, h, inv_h, keys, cell, count, start, stop):
+    """For the non-degenerate faces ``start`` to ``stop``: the ranges of grid cells their boxes cover (lowest x,
+    y, z, then highest), the number of these cells (in ``count[f + 1]``) and, when ``keys`` has entries, the
+    Morton keys of their lowest cells."""
+    with_keys = keys.shape[0] > 0
     for f in range(start, stop):
         if ok[f]:
-            keys[f] = _morton(
-                int((lo[f, 0] - origin[0]) / h), int((lo[f, 1] - origin[1]) / h), int((lo[f, 2] - origin[2]) / h)
-            )
+            if with_keys:
+                keys[f] = _morton(
+                    int((lo[f, 0] - origin[0]) / h), int((lo[f, 1] - origin[1]) / h), int((lo[f, 2] - origin[2]) / h)
+                )
             for d in range(3):
                 cell[f, d] = int((lo[f, d] - origin[d]) * inv_h)
                 cell[f, 3 + d] = int((hi[f, d] - origin[d]) * inv_h)
+            count[f + 1] = (cell[f, 3] - cell[f, 0] + 1) * (cell[f, 4] - cell[f, 1] + 1) * (cell[f, 5] - cell[f, 2] + 1)
 
 
-def _face_boxes(points: np.ndarray, faces: np.ndarray) -> tuple:
-    """Boxes of the faces (F, 3) twice, whether they are non-degenerate (F,), Morton keys (F,), the number of
-    non-degenerate faces and the range of grid cells every box covers (F, 6) (set for non-degenerate faces)."""
+def _face_boxes(points: np.ndarray, faces: np.ndarray, order: np.ndarray | None = None, *,
+                keys: bool = False) -> tuple:
+    """The faces in ``order`` (by default as given) (F, 3), their boxes (F, 3) twice, whether they are
+    non-degenerate (F,), Morton keys (F,) (with ``keys``, else none), the number of non-degenerate faces, the
+    range of grid cells every box covers (F, 6) (set for non-degenerate faces) and the first grid entry of
+    every face (F + 1,) (the cumulated numbers of cells the boxes cover, none for degenerate faces)."""
     n = faces.shape[0]
+    if order is None:
+        order = np.arange(n)
+    local = np.empty_like(faces)
     lo = np.empty((n, 3))
     hi = np.empty((n, 3))
-    ok = np.zeros(n, np.bool_)
-    side = np.zeros(n)
-    for_ranges(_box_range, n, points, faces, lo, hi, ok, side)
+    ok = np.empty(n, np.bool_)
+    side = np.empty(n)
+    for_ranges(_box_range, n, points, faces, order, local, lo, hi, ok, side)
     origin, h, n_ok = _grid_frame(lo, ok, side)
-    keys = np.zeros(n, np.int64)
-    cell = np.zeros((n, 6), np.int64)
-    for_ranges(_key_range, n, lo, hi, ok, origin, h, 1.0 / h, keys, cell)
-    return lo, hi, ok, keys, n_ok, cell
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _entry_count_range(cell, ok, offset, start, stop):
-    """Number of grid cells covered by the boxes of faces ``start`` to ``stop`` (ranges ``cell``), in
-    ``offset[f + 1]`` (0 for a degenerate face)."""
-    for f in range(start, stop):
-        if ok[f]:
-            offset[f + 1] = ((cell[f, 3] - cell[f, 0] + 1) * (cell[f, 4] - cell[f, 1] + 1)
-                             * (cell[f, 5] - cell[f, 2] + 1))
+    morton = np.zeros(n if keys else 0, np.int64)
+    cell = np.empty((n, 6), np.int64)  # rows of degenerate faces stay unset: never read
+    offset = np.zeros(n + 1, np.int64)
+    for_ranges(_key_range, n, lo, hi, ok, origin, h, 1.0 / h, morton, cell, offset)
+    np.cumsum(offset, out=offset)
+    return local, lo, hi, ok, morton, n_ok, cell, offset
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -315,14 +320,11 @@ def _bucket_fill(cell, ok, query, bucket, size):
     return start, entries, cells, flags
 
 
-def _build_grid(cell: np.ndarray, ok: np.ndarray, query: np.ndarray, size: int) -> tuple:
+def _build_grid(cell: np.ndarray, offset: np.ndarray, ok: np.ndarray, query: np.ndarray, size: int) -> tuple:
     """Spatial hash of ``size`` buckets: the non-degenerate faces covering each bucket's cells (ranges ``cell``
-    (F, 6)), in face order, with each entry's packed cell key and flags (bits 0-2: the cell is the face's
-    lowest along x, y, z; bit 3: ``query`` (F,) holds for the face)."""
+    (F, 6), first entries ``offset`` (F + 1,)), in face order, with each entry's packed cell key and flags
+    (bits 0-2: the cell is the face's lowest along x, y, z; bit 3: ``query`` (F,) holds for the face)."""
     n = cell.shape[0]
-    offset = np.zeros(n + 1, np.int64)
-    for_ranges(_entry_count_range, n, cell, ok, offset)
-    np.cumsum(offset, out=offset)
     bucket = np.empty(int(offset[-1]), np.int32 if size < 2**31 else np.int64)
     for_ranges(_bucket_range, n, cell, ok, offset, size, bucket)  # the hashes, in parallel
     return _bucket_fill(cell, ok, query, bucket, size)
@@ -607,6 +609,14 @@ def _near_query(lo, hi, ok, query):
     return near, n
 
 
+def _entry_offsets(offset: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """First grid entries (F + 1,) of the faces still ``ok`` (F,) (``offset``: of a larger set), the entries of
+    the others dropped."""
+    count = np.diff(offset)
+    count[~ok] = 0
+    return np.concatenate(([0], np.cumsum(count)))
+
+
 def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     """Pairs of non-degenerate faces that may meet and share no edge (broad phase).
 
@@ -642,13 +652,14 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     wanted = np.zeros(0, bool) if query is None else np.asarray(query, dtype=bool)
     if query is not None and wanted.shape != (len(fcs),):
         raise ValueError(f"query must have shape ({len(fcs)},); got {wanted.shape}")
-    lo, hi, ok, _, n_ok, cell = _face_boxes(pts, fcs)
+    _, lo, hi, ok, _, n_ok, cell, offset = _face_boxes(pts, fcs)
     if query is not None and n_ok:
         ok, n_ok = _near_query(lo, hi, ok, wanted)
+        offset = _entry_offsets(offset, ok)
     if n_ok == 0:
         return np.zeros((0, 2), np.int64)
     size = 4 * n_ok + 1
-    start, entries, cells, _ = _build_grid(cell, ok, ok, size)
+    start, entries, cells, _ = _build_grid(cell, offset, ok, ok, size)
     return _box_pairs(pts, fcs, _face_planes(pts, fcs), lo, hi, ok, grp, wanted, cell, start, entries,
                       cells, size)
 
@@ -670,7 +681,7 @@ def spatial_order(points, faces) -> np.ndarray:
     numpy.ndarray, shape (F,), int64
     """
     pts, fcs = as_triangle_mesh(points, faces)
-    return np.argsort(_face_boxes(pts, fcs)[3], kind="stable")
+    return np.argsort(_face_boxes(pts, fcs, keys=True)[4], kind="stable")
 
 
 def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
@@ -702,17 +713,19 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
     order = np.asarray(order, dtype=np.int64)
     if order.shape != (len(fcs),):
         raise ValueError(f"order must have shape ({len(fcs)},); got {order.shape}")
+    if order.min(initial=0) < 0 or order.max(initial=-1) >= len(fcs):
+        raise ValueError(f"order must hold face indices below {len(fcs)}")
     # visit the faces in Morton order, so neighbours in space are near in memory
-    local = fcs[order]
-    lo, hi, ok, _, n_ok, cell = _face_boxes(pts, local)
+    local, lo, hi, ok, _, n_ok, cell, offset = _face_boxes(pts, fcs, order)
     hits = np.zeros(len(fcs), bool)
     local_query = q[order]
-    if query is not None and n_ok:  # the grid holds few faces when the query is local (vertices moved in one place)
+    if query is not None and n_ok and not q.all():  # few faces near a local query (vertices moved in one place)
         ok, n_ok = _near_query(lo, hi, ok, local_query)
+        offset = _entry_offsets(offset, ok)
     if n_ok == 0:
         return hits
     size = 4 * n_ok + 1
-    grid = _build_grid(cell, ok, local_query, size)
+    grid = _build_grid(cell, offset, ok, local_query, size)
     hits[order] = _count_hits(pts, local, lo, hi, grid, size)
     return hits
 

@@ -390,6 +390,8 @@ class GuardedMeshSolver(SolverLoop):
             return None  # a self-intersecting input is always compared whole against its baseline
         source, made = self._since_clean
         moved = np.any(self.points != self._clean.points[source], axis=1)
+        if moved.all():
+            return None  # every face has a moved vertex (weathering moves all of them between two checks)
         return made | moved[self.faces].any(axis=1)
 
     def _lap(self, part: str, start: float) -> float:
