@@ -66,9 +66,7 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-import scipy.sparse as sp
 from numba import njit
-from scipy.spatial import cKDTree
 
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range
@@ -449,6 +447,8 @@ class GuardedMeshSolver(SolverLoop):
     def _roll_back(self, hits: np.ndarray) -> None:
         """Restore the restart point after halving the steps of the vertices of the faces ``hits`` (F,) and of their
         two-ring neighbourhood."""
+        import scipy.sparse as sp  # on the first rollback only: the stage starts compiling without SciPy
+
         near = np.zeros(len(self.points))
         near[self.faces[hits].ravel()] = 1.0
         ring_ptr, ring_idx = self._ring
@@ -523,6 +523,8 @@ class GuardedMeshSolver(SolverLoop):
         gone[source[source >= 0]] = False
         heir = np.full(len(self.points), -1, np.int64)
         if gone.any():
+            from scipy.spatial import cKDTree  # on a repair only
+
             heir[gone] = cKDTree(result.points).query(self.points[gone])[1]
         self.points, self.faces = result.points, result.faces
         self.ids = self.ids[old]
