@@ -336,10 +336,10 @@ def test_guard_queries_and_kept_connectivity_match_whole_rebuilds_over_a_run(bun
     assert solver.collapses > 0 and solver.retries > 0 and solver.checks >= 6
 
 
-def test_guard_watch_rolls_back_between_checks_and_only_whole_checks_make_restart_points(bunny):
-    """On the scan's sharp crease the watch of the slowed vertices catches a tangle before the next check (a
-    rollback less than ``check_every`` steps after the restart point), every restart point has no intersecting
-    faces, and the run is the same with one thread and with all."""
+def test_guard_rolls_back_from_whole_checks_to_clean_restart_points_alike_on_any_thread_count(bunny):
+    """On the scan's sharp crease every rollback comes from a check of the whole mesh (``check_every`` steps after
+    the restart point), every restart point has no intersecting faces, and the run is the same with one thread
+    and with all."""
     import numba
 
     class Recorded(WeatheringSolver):
@@ -363,8 +363,7 @@ def test_guard_watch_rolls_back_between_checks_and_only_whole_checks_make_restar
     finally:
         numba.set_num_threads(before)
     solver = runs[0]
-    assert solver.rolled[0] == solver.check_every  # the first tangle is found by a check of the whole mesh
-    assert any(0 < gap < solver.check_every for gap in solver.rolled[1:])  # later ones by the watch
+    assert solver.rolled and all(gap == solver.check_every for gap in solver.rolled)
     for other in runs[1:]:
         assert other.rolled == solver.rolled and np.array_equal(other.points, solver.points)
 
@@ -394,31 +393,13 @@ def test_guard_halves_a_place_once_then_slows_its_slowed_vertices_by_the_repeat_
     assert np.all(solver._scale[again] == 0.0) and np.all(solver._scale[changed & (once == 1.0)] == 0.5)
     assert solver.frozen == np.count_nonzero(again)
 
-    class Unwatched(WeatheringSolver):
-        WATCH = False  # as hydraulic erosion: every rollback halves
+    class Halving(WeatheringSolver):
+        REPEAT_FACTOR = 0.5  # as hydraulic erosion: every rollback halves
 
-    plain = Unwatched(sphere.points, sphere.regular_faces, max_halvings=3)
+    plain = Halving(sphere.points, sphere.regular_faces, max_halvings=3)
     plain._roll_back(first)
     plain._roll_back(second)
     assert np.all(plain._scale[again] == 0.25)
-
-
-def test_guard_watch_is_left_out_when_it_would_test_much_of_the_mesh(bunny, monkeypatch):
-    """With the watch's share of the faces capped below what the crease needs, every rollback comes from a check
-    of the whole mesh, as without a watch, and no step of the run spends time watching."""
-    from pverosion.kernels.solver import mesh_evolution
-
-    class Recorded(WeatheringSolver):
-        def _roll_back(self, hits):
-            self.rolled.append(self.step_count - self._clean.step)
-            super()._roll_back(hits)
-
-    monkeypatch.setattr(mesh_evolution, "WATCH_FRACTION", 1e-4)  # fewer than 7 faces of the scan's 69k
-    solver = Recorded(bunny.points, bunny.regular_faces)
-    solver.rolled, solver.profile = [], {}
-    solver.run(60)
-    assert solver.rolled and all(gap == solver.check_every for gap in solver.rolled)
-    assert "watch" not in solver.profile
 
 
 def test_a_mesh_of_poor_locality_is_renumbered_and_weathers_as_in_its_own_order():

@@ -539,9 +539,9 @@ class HydraulicSolver(GuardedMeshSolver):
         return lo, hi
 
     _curvature_estimator: ClassVar[type] = CurvatureTracker  # the water moves a small part of the mesh per iteration
-    # the water tangles the surface where it pours, and most tangles come undone before the next check: watching
-    # them between checks rolled back 3.5 times as often on the bunny pour scene
-    WATCH: ClassVar[bool] = False
+    # the water tangles the surface where it pours, and most tangles come undone before the next check: every
+    # rollback halves
+    REPEAT_FACTOR: ClassVar[float] = 0.5
 
     def _build_topology(self) -> None:
         super()._build_topology()

@@ -17,32 +17,16 @@ vertices of the intersecting faces and of their two-ring neighbourhood, and
 redoes the steps (the paper's "restart with shorter displacements", applied
 where the mesh tangled instead of everywhere, so the rest of the model keeps
 its pace). A vertex that was slowed down before has its displacement length
-multiplied by :attr:`GuardedMeshSolver.REPEAT_FACTOR` (1/8: three halvings at
-once) instead: a place that tangles again at half its pace (on the bunny
-scan, a sharp crease) would otherwise tangle, and be rolled back and redone,
-once per halving. (Not in a subclass without the watch described below,
-hydraulic erosion: there every rollback halves.) The slowing down is kept
-for the rest of the run; a vertex halved more than ``max_halvings`` times is
-frozen (it stops moving and is never collapsed). ``retries`` counts the rollbacks, ``frozen`` the frozen
-vertices.
-
-Between two checks the guard watches the places where it rolled back: at
-every step, the faces at a slowed or frozen vertex are tested against the
-faces near them (those with a vertex in the watched faces' box widened by
-three times their largest box side, as measured after the last rollback or
-edge collapse), and when they meet the solver rolls back at once, halving
-around the faces found, instead of running the steps left to the next check
-and testing the whole mesh (a region that tangled once tends to tangle
-again). The watch only rolls back: a state becomes the restart point only
-after the check of the whole mesh. Results differ from a guard without the
-watch (rollbacks come at other steps) but, like the check, do not depend on
-the number of threads. The watch is left out while the faces it would test
-are more than a tenth of the mesh (slowed places far apart), so that it never
-costs more per step than a tenth of a whole check. There is no watch on an input that already
-intersects itself, nor with ``repair="topology"``, nor in a subclass that
-sets :attr:`GuardedMeshSolver.WATCH` to False (hydraulic erosion: there the
-water makes tangles that mostly come undone before the next check, and the
-watch would roll them back).
+multiplied by :attr:`GuardedMeshSolver.REPEAT_FACTOR` (1/8 in weathering:
+three halvings at once) instead: a place that tangles again at half its pace
+(on the bunny scan, a sharp crease) would otherwise tangle, and be rolled
+back and redone, once per halving. Hydraulic erosion keeps 1/2: there the
+water makes tangles that mostly come undone before the next check. The
+slowing down is kept for the rest of the run; a vertex slowed down more than
+``max_halvings`` halvings' worth is frozen (it stops moving and is never
+collapsed). ``retries`` counts the rollbacks, ``frozen`` the frozen vertices.
+Only the check of the whole mesh rolls back or makes a restart point, so a
+run does not depend on the number of threads.
 
 Subclasses with more state than the mesh (a fluid, say) extend
 :meth:`GuardedMeshSolver._extra_state` and
@@ -121,10 +105,6 @@ def volume_area(points: np.ndarray, faces: np.ndarray, origin: np.ndarray) -> tu
     return volume / 6.0, area / 2.0
 
 
-WATCH_FRACTION = 0.1
-"""Largest share of the faces the guard's watch tests at every step; beyond it there is no watch."""
-
-
 @dataclass
 class _State:
     """Everything a rollback restores."""
@@ -154,8 +134,8 @@ class GuardedMeshSolver(SolverLoop):
         Self-intersection guard period in steps; 0 switches the guard off.
     max_halvings : int, default: 4
         Freeze a vertex whose displacement had to be halved more than this
-        many times (with :attr:`WATCH`, a repeated slowing down counts as
-        three halvings).
+        many times (a slowing down by :attr:`REPEAT_FACTOR` counts as
+        log2(1 / REPEAT_FACTOR) halvings).
     orientation : {"outward", "inward", "keep"}, default: "outward"
     repair : {"retry", "topology", "off"}, default: "retry"
         What the guard does when the surface meets itself: roll back and
@@ -187,11 +167,8 @@ class GuardedMeshSolver(SolverLoop):
     STAT_NAMES: ClassVar[tuple[str, ...]] = ()
     """Names of the per-step statistics (one row per step, step 0 first); rows come from :meth:`_row`."""
     PROGRESS_LABEL: ClassVar[str] = "steps"
-    WATCH: ClassVar[bool] = True
-    """Whether the guard watches the faces at slowed or frozen vertices between its checks (see the module)."""
     REPEAT_FACTOR: ClassVar[float] = 0.125
-    """Step length factor of a vertex slowed down before that the guard slows down again (others: 0.5); only
-    with :attr:`WATCH` (without it every rollback halves)."""
+    """Step length factor of a vertex slowed down before that the guard slows down again (others: 0.5)."""
     _curvature_estimator: ClassVar[type] = CurvatureOperator
     """Curvature of the current points, built per connectivity (:class:`CurvatureTracker` where few points move)."""
 
@@ -287,7 +264,6 @@ class GuardedMeshSolver(SolverLoop):
     def _build_topology(self) -> None:
         """Everything that depends on the faces only; after edge collapses (``_collapsed``), updated from before."""
         n = len(self.points)
-        self._watched = None  # faces the guard watches between its checks, found on first use
         self._curvature = self._curvature_estimator(self.faces, n)
         if self._collapsed is None:
             self._topology = CollapseTopology.build(self.faces, n)
@@ -407,9 +383,7 @@ class GuardedMeshSolver(SolverLoop):
 
     def _advance(self, checkpoint: bool) -> bool:
         self._step()
-        if self._due(checkpoint):
-            return self._accept()
-        return self._watch()
+        return self._accept() if self._due(checkpoint) else True
 
     @property
     def state(self) -> dict[str, np.ndarray]:
@@ -461,50 +435,11 @@ class GuardedMeshSolver(SolverLoop):
                 f"self-intersections appeared after step {self._clean.step} next to frozen vertices only; "
                 "switch mesh improvement off (min_edge_ratio=0) or repair the input"
             )
-        # a place that tangles again at half its pace needs far shorter steps: its slowed vertices count three
-        # halvings at once (with the watch; without it, as in hydraulic erosion, every rollback halves)
-        repeat = self.REPEAT_FACTOR if self.WATCH else 0.5
-        self._scale[ids] *= np.where(self._scale[ids] < 1.0, repeat, 0.5)
+        # a place that tangles again at half its pace needs far shorter steps
+        self._scale[ids] *= np.where(self._scale[ids] < 1.0, self.REPEAT_FACTOR, 0.5)
         self._scale[self._scale < 0.5**self.max_halvings] = 0.0
         self.retries += 1
-        self._watched = None
         self._restore(self._clean)
-
-    def _watch(self) -> bool:
-        """Between the guard's checks, check the faces at the vertices it has slowed down or frozen against the
-        faces near them, and roll back at once when they meet. False when the step was undone."""
-        if not self.WATCH or self.repair != "retry" or not self.check_every or self._baseline or not self.retries:
-            return True  # (only rollbacks slow vertices down)
-        if self._watched is None:
-            self._watched = self._watch_list()
-        local, watched = self._watched
-        if not watched.any():
-            return True
-        clock = time.perf_counter()
-        found = intersecting_faces(self.points, self.faces[local], query=watched)
-        self._lap("watch", clock)
-        if not found.any():
-            return True
-        hits = np.zeros(len(self.faces), bool)
-        hits[local[found]] = True
-        self._roll_back(hits)
-        return False
-
-    def _watch_list(self) -> tuple[np.ndarray, np.ndarray]:
-        """The faces :meth:`_watch` checks (K,) and which of them are at a slowed or frozen vertex (K,): those and
-        the faces with a vertex in their box, widened by three times the largest box side among them."""
-        watched = (self._scale[self.ids] < 1.0)[self.faces].any(axis=1)
-        if not watched.any():
-            return np.zeros(0, np.int64), np.zeros(0, bool)
-        corners = self.points[self.faces[watched]]
-        reach = 3.0 * float(np.ptp(corners, axis=1).max())
-        low, high = corners.min(axis=(0, 1)) - reach, corners.max(axis=(0, 1)) + reach
-        near = np.all((self.points >= low) & (self.points <= high), axis=1)[self.faces].any(axis=1)
-        local = np.flatnonzero(near | watched)
-        if len(local) > WATCH_FRACTION * len(self.faces):
-            # slowed places far apart: watching them would cost a check of much of the mesh at every step
-            return np.zeros(0, np.int64), np.zeros(0, bool)
-        return local, watched[local]
 
     def _repair_topology(self) -> None:
         """Cut the mesh along its intersection curves and keep the boundary of winding number >= 1."""
