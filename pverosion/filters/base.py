@@ -702,17 +702,19 @@ def polydata_triangle_mesh(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:
     return as_points(points), as_faces(faces, len(points))
 
 
-def replace_triangles(mesh: vtkPolyData, faces: np.ndarray, *, copy: bool = True) -> None:
+def replace_triangles(mesh: vtkPolyData, faces: np.ndarray) -> None:
     """Replace the polygons of ``mesh`` by the triangles ``faces`` (F, 3).
 
-    With ``copy=False`` the cells share the memory of ``faces`` when it is a
-    contiguous int64 array (and keep it alive): for fresh arrays that nothing
-    modifies afterwards.
+    Both cell arrays are copied: ``vtkCellArray.SetData`` keeps arrays of its
+    own that share the given arrays' memory, so a NumPy buffer handed over
+    without a copy would be freed with the wrapper that kept it alive while
+    the cells still point into it (ParaView then crashed on the cells'
+    bounds).
     """
     id_type = vtkIdTypeArray().GetDataType()
-    connectivity = numpy_support.numpy_to_vtk(np.ascontiguousarray(faces, dtype=np.int64).ravel(), deep=copy,
+    connectivity = numpy_support.numpy_to_vtk(np.ascontiguousarray(faces, dtype=np.int64).ravel(), deep=True,
                                               array_type=id_type)
-    offsets = numpy_support.numpy_to_vtk(np.arange(0, 3 * len(faces) + 1, 3, dtype=np.int64), deep=False,
+    offsets = numpy_support.numpy_to_vtk(np.arange(0, 3 * len(faces) + 1, 3, dtype=np.int64), deep=True,
                                          array_type=id_type)
     cells = vtkCellArray()
     cells.SetData(offsets, connectivity)

@@ -71,7 +71,7 @@ class Curvature(ErosionFilter):
             result = operator(points)
         out.ShallowCopy(inp)
         if n_flipped:
-            replace_triangles(out, oriented.input_faces(faces), copy=False)  # a fresh array: shared, not copied
+            replace_triangles(out, oriented.input_faces(faces))
         mean = result.mean  # the result arrays are fresh: the output shares their memory instead of copying it
         set_point_array(out, "mean_curvature", mean, copy=False)
         set_point_array(out, "gaussian_curvature", result.gaussian, copy=False)
