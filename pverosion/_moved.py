@@ -89,22 +89,25 @@ def install() -> None:
         sys.meta_path.append(_MovedFinder())
 
 
-def reexport(package: str, module: str) -> tuple[list[str], object]:
+def reexport(package: str, module: str, *, lazy_names: tuple[str, ...] | None = None) -> tuple[list[str], object]:
     """``__all__`` and a module ``__getattr__`` for a package that replaced the module of its name.
 
     The package re-exports ``module``'s public names; other attributes the old module had
-    (private helpers) are still found, with a DeprecationWarning.
+    (private helpers) are still found, with a DeprecationWarning. With ``lazy_names`` (``module``'s
+    ``__all__``), ``module`` is imported on the first attribute read instead of now, so importing a
+    sibling module of the package does not import it.
     """
-    inner = importlib.import_module(module)
+    public = list(importlib.import_module(module).__all__ if lazy_names is None else lazy_names)
 
     def __getattr__(name: str):
         if name.startswith("__"):
             raise AttributeError(name)
         try:
-            value = getattr(inner, name)
+            value = getattr(importlib.import_module(module), name)
         except AttributeError:
             raise AttributeError(f"module {package!r} has no attribute {name!r}") from None
-        warnings.warn(f"{package}.{name} is now {module}.{name}", DeprecationWarning, stacklevel=2)
+        if name not in public:
+            warnings.warn(f"{package}.{name} is now {module}.{name}", DeprecationWarning, stacklevel=2)
         return value
 
-    return list(inner.__all__), __getattr__
+    return public, __getattr__

@@ -7,24 +7,10 @@ step kernel ahead of a stage (:mod:`pverosion._precompile`) imports
 :mod:`.displacement` without the solver and its dependencies.
 """
 
-import importlib
-import warnings
+from pverosion._moved import reexport
 
-__all__ = ["DIRECTIONS", "STAT_NAMES", "WeatheringSolver"]
-"""The public names of :mod:`.model`."""
-
-
-def __getattr__(name: str):
-    if name.startswith("__"):
-        raise AttributeError(name)
-    model = importlib.import_module(f"{__name__}.model")
-    try:
-        value = getattr(model, name)
-    except AttributeError:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
-    if name not in __all__:
-        warnings.warn(f"{__name__}.{name} is now {model.__name__}.{name}", DeprecationWarning, stacklevel=2)
-    return value
+__all__, __getattr__ = reexport(__name__, "pverosion.kernels.weathering.model",
+                                lazy_names=("DIRECTIONS", "STAT_NAMES", "WeatheringSolver"))
 
 
 def __dir__() -> list[str]:
