@@ -191,9 +191,15 @@ def _morton(ix, iy, iz):
 
 @njit(cache=True, error_model="numpy")
 def _hash(ix, iy, iz, size):
-    """Bucket of a cell: its Morton code modulo the table size, so that cells near in
-    space mostly land in buckets near in memory."""
-    return _morton(ix, iy, iz) % size
+    """Bucket of a cell: the low bits of its Morton code (``size``: a power of two), so that cells near in space
+    mostly land in buckets near in memory."""
+    return _morton(ix, iy, iz) & (size - 1)
+
+
+def _table_size(n: int) -> int:
+    """Buckets of the spatial hash of ``n`` faces: the smallest power of two above 2 n (a mask, not a division,
+    finds a cell's bucket)."""
+    return 1 << (2 * n).bit_length()
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -274,16 +280,19 @@ def _face_boxes(points: np.ndarray, faces: np.ndarray, order: np.ndarray | None 
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def _bucket_range(cell, ok, offset, size, bucket, start, stop):
-    """Buckets of the grid entries of faces ``start`` to ``stop`` (every cell their boxes cover, in x, y, z loop
-    order), from ``offset[f]`` on."""
+    """Buckets (:func:`_hash`) of the grid entries of faces ``start`` to ``stop`` (every cell their boxes cover, in
+    x, y, z loop order), from ``offset[f]`` on."""
+    mask = size - 1
     for f in range(start, stop):
         if not ok[f]:
             continue
         k = offset[f]
         for ix in range(cell[f, 0], cell[f, 3] + 1):
+            x = _spread(ix) << 2
             for iy in range(cell[f, 1], cell[f, 4] + 1):
+                xy = x | (_spread(iy) << 1)
                 for iz in range(cell[f, 2], cell[f, 5] + 1):
-                    bucket[k] = _hash(ix, iy, iz, size)
+                    bucket[k] = (xy | _spread(iz)) & mask
                     k += 1
 
 
@@ -341,11 +350,12 @@ def _shared_vertices(faces, f, g):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _hits_range(points, faces, lo, hi, start, entries, cells, flags, hits, first, last):
+def _hits_range(points, faces, box, start, entries, cells, flags, hits, first, last):
     """Flag in ``hits`` the faces that meet a non-adjacent face, testing the pairs with a queried face in the
     cells of buckets ``first`` to ``last``, each pair in the first cell both boxes cover (the cell where, along
     every axis, one of the two is lowest: the entries' flags together have all four bits); both faces of a hit
-    are flagged, another range may flag the same face, with the same value."""
+    are flagged, another range may flag the same face, with the same value. ``box`` (F, 6): every face's lowest
+    then highest corner, in one row."""
     for b in range(first, last):
         for i in range(start[b], start[b + 1] - 1):
             key = cells[i]
@@ -356,28 +366,29 @@ def _hits_range(points, faces, lo, hi, start, entries, cells, flags, hits, first
                     continue  # another cell hashed here, the pair meets in an earlier cell, or neither is queried
                 if f < 0:  # the face's box and corners, read once a pair needs them
                     f = entries[i]
-                    f_lo = (lo[f, 0], lo[f, 1], lo[f, 2])
-                    f_hi = (hi[f, 0], hi[f, 1], hi[f, 2])
+                    x0, y0, z0, x1, y1, z1 = box[f, 0], box[f, 1], box[f, 2], box[f, 3], box[f, 4], box[f, 5]
                     a, b_, c = faces[f, 0], faces[f, 1], faces[f, 2]
                 g = entries[j]
-                if (f_lo[0] > hi[g, 0] or lo[g, 0] > f_hi[0] or f_lo[1] > hi[g, 1] or lo[g, 1] > f_hi[1]
-                        or f_lo[2] > hi[g, 2] or lo[g, 2] > f_hi[2]):
-                    continue  # boxes apart
                 u, v, w = faces[g, 0], faces[g, 1], faces[g, 2]
-                if a == u or a == v or a == w or b_ == u or b_ == v or b_ == w or c == u or c == v or c == w:
-                    continue  # adjacent
+                # one test without branches: most pairs here are adjacent, and whether their boxes meet is a coin toss
+                adjacent = ((a == u) | (a == v) | (a == w) | (b_ == u) | (b_ == v) | (b_ == w)
+                            | (c == u) | (c == v) | (c == w))
+                apart = ((x0 > box[g, 3]) | (box[g, 0] > x1) | (y0 > box[g, 4]) | (box[g, 1] > y1)
+                         | (z0 > box[g, 5]) | (box[g, 2] > z1))
+                if adjacent | apart:
+                    continue
                 if tri_tri(v3.row(points, a), v3.row(points, b_), v3.row(points, c),
                            v3.row(points, u), v3.row(points, v), v3.row(points, w)):
                     hits[f] = True
                     hits[g] = True  # same value from any thread: a benign race
 
 
-def _count_hits(points, faces, lo, hi, grid, size) -> np.ndarray:
+def _count_hits(points, faces, box, grid, size) -> np.ndarray:
     """Flag the faces that meet a non-adjacent face, testing the pairs with a queried face once (per cell of
-    the grid, so each pair of faces in a cell is met once rather than from both faces); ``grid``: what
-    :func:`_build_grid` returned."""
+    the grid, so each pair of faces in a cell is met once rather than from both faces); ``box`` (F, 6): lowest
+    and highest corners; ``grid``: what :func:`_build_grid` returned."""
     hits = np.zeros(faces.shape[0], np.bool_)
-    for_ranges(_hits_range, size, points, faces, lo, hi, *grid, hits, min_items=HEAVY_ITEMS_PER_RANGE)
+    for_ranges(_hits_range, size, points, faces, box, *grid, hits, min_items=HEAVY_ITEMS_PER_RANGE)
     return hits
 
 
@@ -658,7 +669,7 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
         offset = _entry_offsets(offset, ok)
     if n_ok == 0:
         return np.zeros((0, 2), np.int64)
-    size = 4 * n_ok + 1
+    size = _table_size(n_ok)
     start, entries, cells, _ = _build_grid(cell, offset, ok, ok, size)
     return _box_pairs(pts, fcs, _face_planes(pts, fcs), lo, hi, ok, grp, wanted, cell, start, entries,
                       cells, size)
@@ -724,9 +735,9 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
         offset = _entry_offsets(offset, ok)
     if n_ok == 0:
         return hits
-    size = 4 * n_ok + 1
+    size = _table_size(n_ok)
     grid = _build_grid(cell, offset, ok, local_query, size)
-    hits[order] = _count_hits(pts, local, lo, hi, grid, size)
+    hits[order] = _count_hits(pts, local, np.concatenate((lo, hi), axis=1), grid, size)
     return hits
 
 

@@ -54,7 +54,7 @@ from numba import njit
 
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range
-from pverosion.kernels._threads import for_chunks
+from pverosion.kernels._threads import for_chunks, for_ranges
 from pverosion.kernels.curvature.operator import CurvatureOperator
 from pverosion.kernels.exact.intersection import intersecting_faces, spatial_order
 from pverosion.kernels.mesh.geometry import vertex_normals
@@ -103,6 +103,19 @@ def volume_area(points: np.ndarray, faces: np.ndarray, origin: np.ndarray) -> tu
         volume += float(partial[c, 0])
         area += float(partial[c, 1])
     return volume / 6.0, area / 2.0
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _moved_range(points, clean, source, faces, made, out, start, stop):
+    """Faces ``start`` to ``stop`` of :meth:`GuardedMeshSolver._moved_faces`: ``made`` or with a vertex not at its
+    place ``clean[source]`` of the restart point."""
+    for f in range(start, stop):
+        moved = made[f]
+        for t in range(3):
+            v = faces[f, t]
+            s = source[v]
+            moved = moved or points[v, 0] != clean[s, 0] or points[v, 1] != clean[s, 1] or points[v, 2] != clean[s, 2]
+        out[f] = moved
 
 
 @dataclass
@@ -363,10 +376,11 @@ class GuardedMeshSolver(SolverLoop):
         if self._baseline:
             return None  # a self-intersecting input is always compared whole against its baseline
         source, made = self._since_clean
-        moved = np.any(self.points != self._clean.points[source], axis=1)
+        moved = np.empty(len(self.faces), bool)
+        for_ranges(_moved_range, len(self.faces), self.points, self._clean.points, source, self.faces, made, moved)
         if moved.all():
-            return None  # every face has a moved vertex (weathering moves all of them between two checks)
-        return made | moved[self.faces].any(axis=1)
+            return None  # every face has a moved vertex
+        return moved
 
     def _lap(self, part: str, start: float) -> float:
         """Add the time since ``start`` to :attr:`profile` (when profiling) and restart the clock."""
