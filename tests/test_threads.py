@@ -62,14 +62,16 @@ def test_chunk_sums_do_not_depend_on_the_thread_count():
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two numba threads")
 def test_ranges_run_in_several_threads_when_allowed():
     seen = set()
+    both = threading.Barrier(2, timeout=30)  # broken (an error) unless a second thread runs the other range
 
     def record(start, stop):
         seen.add(threading.get_ident())
+        both.wait()
 
     before = numba.get_num_threads()
     numba.set_num_threads(2)
     try:
-        for_ranges(record, 4 * MIN_ITEMS_PER_RANGE)
+        for_ranges(record, 2 * MIN_ITEMS_PER_RANGE)
     finally:
         numba.set_num_threads(before)
     assert len(seen) == 2
