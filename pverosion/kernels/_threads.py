@@ -69,7 +69,7 @@ class _Loop:
                 if i < n and self.error is None:
                     kernel, args = self.calls[i]
                     kernel(*args)
-            except BaseException as exc:  # re-raised in the caller, after the pieces in flight
+            except BaseException as exc:  # noqa: BLE001 - re-raised in the caller once the pieces in flight end
                 if self.error is None:
                     self.error = exc
             finally:
