@@ -134,8 +134,11 @@ def _run(calls: list[tuple], threads: int) -> None:
     _pool.wake(min(threads, len(calls)) - 1, loop)
     try:
         loop.work()
-    finally:
         loop.finished.acquire()
+    except BaseException as exc:  # interrupted outside a piece: the pieces not yet started are skipped
+        if loop.error is None:
+            loop.error = exc
+        raise
     if loop.error is not None:
         raise loop.error
 
