@@ -62,14 +62,16 @@ def test_chunk_sums_do_not_depend_on_the_thread_count():
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two numba threads")
 def test_ranges_run_in_several_threads_when_allowed():
     seen = set()
+    both = threading.Barrier(2, timeout=30)  # broken (an error) unless a second thread runs the other range
 
     def record(start, stop):
         seen.add(threading.get_ident())
+        both.wait()
 
     before = numba.get_num_threads()
     numba.set_num_threads(2)
     try:
-        for_ranges(record, 4 * MIN_ITEMS_PER_RANGE)
+        for_ranges(record, 2 * MIN_ITEMS_PER_RANGE)
     finally:
         numba.set_num_threads(before)
     assert len(seen) == 2
@@ -87,5 +89,41 @@ def test_an_error_in_a_range_reaches_the_caller():
             pytest.skip("needs two numba threads")
         with pytest.raises(ValueError, match="bad range"):
             for_ranges(fail, 4 * MIN_ITEMS_PER_RANGE)
+    finally:
+        numba.set_num_threads(before)
+
+
+def test_loops_after_an_error_still_visit_every_item_once():
+    def fail(start, stop):
+        raise ValueError("bad range")
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    try:
+        for _ in range(3):
+            with pytest.raises(ValueError, match="bad range"):
+                for_ranges(fail, 8 * MIN_ITEMS_PER_RANGE)
+            visits = np.zeros(8 * MIN_ITEMS_PER_RANGE + 5, np.int64)
+            for_ranges(_count_visits, len(visits), visits)
+            assert np.all(visits == 1)
+    finally:
+        numba.set_num_threads(before)
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two numba threads")
+def test_an_interrupt_in_a_pool_thread_reaches_the_caller():
+    caller = threading.get_ident()
+    both = threading.Barrier(2, timeout=30)  # the pool thread takes the second range
+
+    def interrupt_elsewhere(start, stop):
+        both.wait()
+        if threading.get_ident() != caller:
+            raise KeyboardInterrupt
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(2)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            for_ranges(interrupt_elsewhere, 2 * MIN_ITEMS_PER_RANGE)
     finally:
         numba.set_num_threads(before)

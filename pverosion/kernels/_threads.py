@@ -7,24 +7,32 @@ the first run after an install. A serial kernel over an index range
 that; these helpers run it on several ranges at once from a pool of Python
 threads, which run in parallel because the kernel releases the GIL.
 
+The pieces of a loop are claimed one at a time, by the calling thread and by
+the pool threads it wakes: a thread that starts late (on a machine busy with
+other processes) takes fewer pieces, and the caller waits only for the
+pieces already started, never for a thread still asleep.
+
 The number of threads is ``numba.get_num_threads()``, so
 ``NUMBA_NUM_THREADS``, :func:`numba.set_num_threads` and the per-stage caps
 of :func:`pverosion._runtime.stage_run` apply as they do to parfors.
-Results never depend on it: :func:`for_ranges` splits items whose results
-are written independently, and :func:`for_chunks` runs the fixed
-:data:`~pverosion.kernels._scatter.CHUNKS` chunks of a deterministic
-scatter-add, each into its own accumulator.
+Results never depend on it, nor on which thread runs which piece:
+:func:`for_ranges` splits items whose results are written independently, and
+:func:`for_chunks` runs the fixed :data:`~pverosion.kernels._scatter.CHUNKS`
+chunks of a deterministic scatter-add, each into its own accumulator.
 """
 
 from __future__ import annotations
 
+import itertools
+import os
 import threading
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from queue import SimpleQueue
 
 from pverosion.kernels._scatter import CHUNKS
 
-__all__ = ["HEAVY_ITEMS_PER_RANGE", "MIN_ITEMS_PER_RANGE", "for_chunks", "for_ranges", "range_count"]
+__all__ = ["HEAVY_ITEMS_PER_RANGE", "MIN_ITEMS_PER_RANGE", "PIECES_PER_THREAD", "for_chunks", "for_ranges",
+           "range_count"]
 
 MIN_ITEMS_PER_RANGE = 2048
 """Smallest range handed to a thread by default: below it, one call in the calling thread is cheaper."""
@@ -32,8 +40,78 @@ MIN_ITEMS_PER_RANGE = 2048
 HEAVY_ITEMS_PER_RANGE = 64
 """Smallest range for kernels with much work per item (pair tests, polygon cuts, ray casts)."""
 
-_pool: ThreadPoolExecutor | None = None
-_pool_lock = threading.Lock()
+PIECES_PER_THREAD = 4
+"""Ranges per thread :func:`for_ranges` splits a loop into (when they keep ``min_items``), so that the threads
+that start first take over the pieces of one that starts late."""
+
+
+class _Loop:
+    """The pieces ``(kernel, args)`` of one parallel loop, claimed one at a time by the threads that run them."""
+
+    __slots__ = ("calls", "claims", "done", "error", "finished", "n")
+
+    def __init__(self, calls: list[tuple]) -> None:
+        self.calls = calls
+        self.n = len(calls)
+        self.claims = itertools.count()  # next() is atomic: each piece goes to one thread
+        self.done = itertools.count(1)
+        self.finished = threading.Lock()  # released when the last piece is done
+        self.finished.acquire()
+        self.error: BaseException | None = None
+
+    def work(self) -> None:
+        """Run unclaimed pieces until none is left; after an error (or Ctrl-C) the rest are only counted."""
+        n = self.n
+        while True:
+            i = n
+            try:
+                i = next(self.claims)
+                if i < n and self.error is None:
+                    kernel, args = self.calls[i]
+                    kernel(*args)
+            except BaseException as exc:  # noqa: BLE001 - re-raised in the caller once the pieces in flight end
+                if self.error is None:
+                    self.error = exc
+            finally:
+                if i < n and next(self.done) == n:
+                    self.finished.release()
+            if i >= n:
+                return
+
+
+class _Pool:
+    """Daemon threads waiting on one queue for loops to work on, started as the loops need them."""
+
+    def __init__(self) -> None:
+        self.queue: SimpleQueue[_Loop] = SimpleQueue()
+        self.size = 0
+        self.lock = threading.Lock()
+
+    def wake(self, count: int, loop: _Loop) -> None:
+        """Hand ``loop`` to ``count`` threads (each claims pieces until none is left)."""
+        if self.size < count:
+            with self.lock:
+                while self.size < count:
+                    threading.Thread(target=self._serve, name=f"pverosion-{self.size}", daemon=True).start()
+                    self.size += 1
+        for _ in range(count):
+            self.queue.put(loop)
+
+    def _serve(self) -> None:
+        while True:
+            self.queue.get().work()
+
+
+_pool = _Pool()
+
+
+def _reset_pool() -> None:
+    global _pool
+    _pool = _Pool()  # the threads of the parent do not exist in a forked child
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_reset_pool)
 
 
 def _threads() -> int:
@@ -42,36 +120,36 @@ def _threads() -> int:
     return numba.get_num_threads()
 
 
-def _executor() -> ThreadPoolExecutor:
-    global _pool
-    with _pool_lock:
-        if _pool is None:
-            import numba
+def _run(calls: list[tuple], threads: int) -> None:
+    """Run ``kernel(*args)`` for each ``(kernel, args)`` on up to ``threads`` threads, this one included.
 
-            _pool = ThreadPoolExecutor(max_workers=numba.config.NUMBA_NUM_THREADS, thread_name_prefix="pverosion")
-        return _pool
-
-
-def _run(calls: list[tuple]) -> None:
-    """Run ``kernel(*args)`` for each ``(kernel, args)``: the first in this thread, the others in the pool."""
-    if len(calls) == 1:
-        kernel, args = calls[0]
-        kernel(*args)
+    The first error of a piece is raised here once the pieces already started
+    are done; the pieces not yet started are then skipped.
+    """
+    if threads <= 1 or len(calls) == 1:
+        for kernel, args in calls:
+            kernel(*args)
         return
-    futures = [_executor().submit(kernel, *args) for kernel, args in calls[1:]]
-    kernel, args = calls[0]
+    loop = _Loop(calls)
+    _pool.wake(min(threads, len(calls)) - 1, loop)
     try:
-        kernel(*args)
-    finally:
-        for future in futures:
-            future.result()
+        loop.work()
+        loop.finished.acquire()
+    except BaseException as exc:  # interrupted outside a piece: the pieces not yet started are skipped
+        if loop.error is None:
+            loop.error = exc
+        raise
+    if loop.error is not None:
+        raise loop.error
 
 
 def for_ranges(kernel: Callable, n_items: int, *args, min_items: int = MIN_ITEMS_PER_RANGE) -> None:
     """Call ``kernel(*args, start, stop)`` on consecutive ranges covering ``[0, n_items)``, in parallel.
 
     ``kernel`` must release the GIL (``@njit(nogil=True)``) and write only
-    the results of the items in its range.
+    the results of the items in its range. With several threads the items
+    are split into up to :data:`PIECES_PER_THREAD` ranges per thread, none
+    shorter than ``min_items``.
 
     Parameters
     ----------
@@ -84,19 +162,18 @@ def for_ranges(kernel: Callable, n_items: int, *args, min_items: int = MIN_ITEMS
     min_items : int, default: MIN_ITEMS_PER_RANGE
         Smallest range worth a thread; lower it for kernels with much work per item.
     """
-    parts = range_count(n_items, min_items=min_items)
+    threads = range_count(n_items, min_items=min_items)
+    if threads == 1:
+        kernel(*args, 0, n_items)
+        return
+    parts = min(threads * PIECES_PER_THREAD, n_items // max(1, min_items))
     bounds = [p * n_items // parts for p in range(parts + 1)]
-    _run([(kernel, (*args, bounds[p], bounds[p + 1])) for p in range(parts)])
+    _run([(kernel, (*args, bounds[p], bounds[p + 1])) for p in range(parts)], threads)
 
 
 def range_count(n_items: int, *, min_items: int = MIN_ITEMS_PER_RANGE) -> int:
-    """Number of ranges :func:`for_ranges` splits ``n_items`` into: one per thread, none below ``min_items``."""
+    """Threads :func:`for_ranges` runs ``n_items`` on: one per thread, none for fewer than ``min_items`` items."""
     return max(1, min(_threads(), n_items // max(1, min_items)))
-
-
-def _chunk_group(kernel: Callable, chunks: range, args: tuple) -> None:
-    for c in chunks:
-        kernel(*args, c)
 
 
 def for_chunks(kernel: Callable, n_items: int, *args) -> None:
@@ -116,4 +193,4 @@ def for_chunks(kernel: Callable, n_items: int, *args) -> None:
         Leading arguments of ``kernel``.
     """
     threads = max(1, min(_threads(), CHUNKS, n_items // MIN_ITEMS_PER_RANGE))
-    _run([(_chunk_group, (kernel, range(t, CHUNKS, threads), args)) for t in range(threads)])
+    _run([(kernel, (*args, c)) for c in range(CHUNKS)], threads)
