@@ -225,7 +225,7 @@ def _lex_less(xy: np.ndarray, a: int, b: int) -> bool:
 def _winding(xy: np.ndarray, first: int, next_he: np.ndarray, orig: np.ndarray, dest: np.ndarray, p: int) -> int:
     """Winding number of the face cycle starting at half-edge ``first`` around point ``p`` (not on it)."""
     py = xy[p, 1]
-    w = 0
+    w = np.int64(0)
     h = first
     while True:
         a = orig[h]
@@ -464,7 +464,7 @@ def _delaunay_flips(xy: np.ndarray, tri: np.ndarray, nt: int, eu: np.ndarray, ev
 def _boundary_cycle(location: np.ndarray, edge_param: np.ndarray) -> np.ndarray:
     """(nb,) int64 boundary cycle: corner 0, edge 0 points by ``edge_param``, corner 1, ..., edge 2 points."""
     n = location.shape[0]
-    n_edge_points = np.int64(0)
+    n_edge_points = np.int64(0)  # np.int64, not literals, for values a loop updates: typed in numba's first pass
     for i in range(3, n):
         if location[i] < LOCATION_INTERIOR:
             n_edge_points += 1
