@@ -303,6 +303,16 @@ def _argsort(values: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
+def _take(values: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """(k,) int64 ``values[idx]`` of (n,) int64 ``values`` and (k,) int64 ``idx``: a loop, which compiles
+    once, where every fancy-indexing expression would compile its own code."""
+    out = np.empty(idx.shape[0], dtype=np.int64)
+    for i in range(idx.shape[0]):
+        out[i] = values[idx[i]]
+    return out
+
+
+@njit(cache=True)
 def _order_keys(values: np.ndarray) -> np.ndarray:
     """(n,) int64 keys in the order of the (n,) contiguous float64 ``values`` (not NaN; -0.0 before 0.0), so
     that one compiled :func:`_argsort` (int64) sorts both kinds of key.
@@ -414,14 +424,14 @@ def _delaunay_flips(xy: np.ndarray, tri: np.ndarray, nt: int, eu: np.ndarray, ev
     fixed = np.empty(eu.shape[0], np.int64)
     for e in range(eu.shape[0]):
         fixed[e] = min(eu[e], ev[e]) * n + max(eu[e], ev[e])
-    fixed = fixed[_argsort(fixed)]
+    fixed = _take(fixed, _argsort(fixed))
     keys = np.empty(3 * nt, np.int64)
     for _ in range(_FLIP_SWEEPS):
         for t in range(nt):
             for k in range(3):
                 keys[3 * t + k] = tri[t, k] * n + tri[t, (k + 1) % 3]
         order = _argsort(keys)
-        sorted_keys = keys[order]
+        sorted_keys = _take(keys, order)
         flipped = np.bool_(False)
         for t in range(nt):
             for k in range(3):
@@ -521,7 +531,7 @@ def _graph_edges(bnd: np.ndarray, location: np.ndarray, segments: np.ndarray) ->
         keys[nk] = min(a, b) * n + max(a, b)
         nk += 1
     used = keys[:nk]
-    sorted_keys = used[_argsort(used)]
+    sorted_keys = _take(used, _argsort(used))
     for j in range(nk):
         if j > 0 and sorted_keys[j] == sorted_keys[j - 1]:
             continue
@@ -1014,7 +1024,8 @@ def _cut(xy, location, edge_param, segments, insert_isolated):
         new_nt = _ear_clip(xy, pt, nxt, prv, merged[0], mc, tri, nt)
         if new_nt < 0:
             return _empty_result()
-        reg[nt:new_nt] = region_of_face[f]
+        for t in range(nt, new_nt):
+            reg[t] = region_of_face[f]
         nt = new_nt
 
     if insert_isolated is not None:  # pruned when compiled for None
