@@ -929,7 +929,9 @@ def cut_triangle(
 
 
 @njit(cache=True)
-def _cut(xy, location, edge_param, segments, insert_isolated):
+def _cut(
+    xy: np.ndarray, location: np.ndarray, edge_param: np.ndarray, segments: np.ndarray, insert_isolated: bool | None
+) -> tuple[np.ndarray, np.ndarray]:
     """:func:`cut_triangle`, whose result it returns; ``insert_isolated`` None (not False) compiles it
     without the insertion of isolated interior points, a sizeable part of the code that a Boolean
     operation never needs: a triangle with such points then returns no triangles and a region array of
