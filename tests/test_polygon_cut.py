@@ -503,6 +503,10 @@ def test_batch_matches_single_calls():
     c = Cut(TRI)
     c.seg.append((c.edge(0, 0.4), c.edge(1, 0.3)))
     cuts.append(c)
+    lone = Cut(TRI)  # a loop and an isolated interior point: cut by the full cut_triangle after the batch
+    lone.loop(np.array([0.3, 0.3, 0.4]) @ lone.corners, 0.05, 6)
+    isolated = lone.bary((0.6, 0.2, 0.2))
+    cuts.append(lone)
     bad = Cut(TRI)
     bad.seg.append((0, 9))
     cuts.append(bad)
@@ -524,3 +528,4 @@ def test_batch_matches_single_calls():
         np.testing.assert_array_equal(tri[start[i] : start[i + 1]], t1)
         np.testing.assert_array_equal(reg[start[i] : start[i + 1]], r1)
     assert start[-1] == start[-2]  # the inconsistent one is empty
+    assert np.any(tri[start[-3] : start[-2]] == isolated)  # the isolated point is a vertex

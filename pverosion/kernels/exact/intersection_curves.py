@@ -193,7 +193,8 @@ def _crossing_in(p, tri, a, b, side_b):
 @njit(cache=True)
 def _case(s):
     """Index into CASES of a triangle whose vertices lie on the sides ``s`` of the other plane."""
-    low, high, total = 2, 0, 0
+    # np.int64, not literals, for values a loop updates: numba types them in its first inference pass
+    low, high, total = np.int64(2), np.int64(0), np.int64(0)
     for k in range(3):
         a, b = s[k], s[(k + 1) % 3]
         digit = 2 if a * b < 0 else (1 if a == 0 or b == 0 else 0)
@@ -209,8 +210,8 @@ def _case(s):
 def _ends(s):
     """Ends of a triangle's interval on the other plane: their number n and each end's 3 * kind (0 vertex / 1 edge)
     + index, packed 3 bits an end (end e: ``(ends >> 3 * e) & 7``); no arrays, as this runs for every pair."""
-    ends = 0
-    n = 0
+    ends = np.int64(0)
+    n = np.int64(0)
     for k in range(3):
         if s[k] == 0:
             ends |= k << (3 * n)
@@ -254,7 +255,7 @@ def _apart_in_projection(p, tf, tg):
     separate them (strictly, or through the shared vertex): what two faces share projects into what their
     projections share. Nearby faces of a flat region are settled so without the exact zeros of their
     orientations in space."""
-    shared = 0
+    shared = np.int64(0)
     for k in range(3):
         shared += tf[k] == tg[0] or tf[k] == tg[1] or tf[k] == tg[2]
     if shared > 1:
@@ -289,7 +290,7 @@ def _classify(p, faces, canon, f, g, keys, locs, cases):
     # the sides of f's vertices on g's plane and of g's on f's (a shared vertex lies in both planes)
     sf = (_side(p, tg, tf[0]), _side(p, tg, tf[1]), _side(p, tg, tf[2]))
     sg = (_side(p, tf, tg[0]), _side(p, tf, tg[1]), _side(p, tf, tg[2]))
-    shared = 0
+    shared = np.int64(0)
     for k in range(3):
         shared += tf[k] == tg[0] or tf[k] == tg[1] or tf[k] == tg[2]
     cases[0], cases[1] = _case(sf), _case(sg)
@@ -303,7 +304,7 @@ def _classify(p, faces, canon, f, g, keys, locs, cases):
     axis_f, axis_g = _drop_axis(p, tf), _drop_axis(p, tg)
     orient_f = _o2(p, axis_f, tf[0], tf[1], tf[2])
     orient_g = _o2(p, axis_g, tg[0], tg[1], tg[2])
-    found = 0
+    found = np.int64(0)
     for side in range(2):  # ends of f's interval located on g, then ends of g's interval located on f
         tri, other, s = (tf, tg, sf) if side == 0 else (tg, tf, sg)
         axis, orientation = (axis_g, orient_g) if side == 0 else (axis_f, orient_f)
@@ -322,7 +323,7 @@ def _classify(p, faces, canon, f, g, keys, locs, cases):
                 continue
             loc_f, loc_g = (own, there) if side == 0 else (there, own)
             kind, x, y = _key(canon, n_vertices, tf, tg, f, g, loc_f, loc_g)
-            known = False
+            known = np.bool_(False)
             for q in range(found):
                 if keys[q, 0] == kind and keys[q, 1] == x and keys[q, 2] == y:
                     known = True
@@ -946,7 +947,7 @@ def _first_of_equal_rows(bits: np.ndarray) -> np.ndarray:
     """The lowest index of the rows equal to every row of ``bits`` (V, 3) int64, by an open-addressing hash table
     (one pass in index order, so the first row of every position is met first)."""
     n = bits.shape[0]
-    size = 16
+    size = np.int64(16)
     while size < 2 * n:
         size *= 2
     table = np.full(size, -1, np.int64)
@@ -1081,7 +1082,7 @@ def _walk(point, segs, start, order, degree, used, path, n):
     first = point
     path[n] = point
     n += 1
-    steps = 0
+    steps = np.int64(0)
     while True:
         nxt = -1
         if degree[point] == 2 or steps == 0:
@@ -1125,7 +1126,7 @@ def _walk_polylines(segs, n_points):
         if degree[v] == 2 or degree[v] == 0:
             continue
         while True:
-            free = False
+            free = np.bool_(False)
             for j in range(start[v], start[v + 1]):
                 if not used[order[j] % n_seg]:
                     free = True

@@ -225,7 +225,7 @@ def _lex_less(xy: np.ndarray, a: int, b: int) -> bool:
 def _winding(xy: np.ndarray, first: int, next_he: np.ndarray, orig: np.ndarray, dest: np.ndarray, p: int) -> int:
     """Winding number of the face cycle starting at half-edge ``first`` around point ``p`` (not on it)."""
     py = xy[p, 1]
-    w = 0
+    w = np.int64(0)
     h = first
     while True:
         a = orig[h]
@@ -303,6 +303,16 @@ def _argsort(values: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
+def _take(values: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """(k,) int64 ``values[idx]`` of (n,) int64 ``values`` and (k,) int64 ``idx``: a loop, which compiles
+    once, where every fancy-indexing expression would compile its own code."""
+    out = np.empty(idx.shape[0], dtype=np.int64)
+    for i in range(idx.shape[0]):
+        out[i] = values[idx[i]]
+    return out
+
+
+@njit(cache=True)
 def _order_keys(values: np.ndarray) -> np.ndarray:
     """(n,) int64 keys in the order of the (n,) contiguous float64 ``values`` (not NaN; -0.0 before 0.0), so
     that one compiled :func:`_argsort` (int64) sorts both kinds of key.
@@ -337,8 +347,8 @@ def _insert_point(xy: np.ndarray, tri: np.ndarray, reg: np.ndarray, nt: int, q: 
     Nothing happens when ``q`` coincides with a vertex or lies in no triangle.
     """
     for t in range(nt):
-        zero = -1
-        n_zero = 0
+        zero = np.int64(-1)
+        n_zero = np.int64(0)
         inside = True
         for j in range(3):
             s = _orient(xy, tri[t, j], tri[t, (j + 1) % 3], q)
@@ -414,15 +424,15 @@ def _delaunay_flips(xy: np.ndarray, tri: np.ndarray, nt: int, eu: np.ndarray, ev
     fixed = np.empty(eu.shape[0], np.int64)
     for e in range(eu.shape[0]):
         fixed[e] = min(eu[e], ev[e]) * n + max(eu[e], ev[e])
-    fixed = fixed[_argsort(fixed)]
+    fixed = _take(fixed, _argsort(fixed))
     keys = np.empty(3 * nt, np.int64)
     for _ in range(_FLIP_SWEEPS):
         for t in range(nt):
             for k in range(3):
                 keys[3 * t + k] = tri[t, k] * n + tri[t, (k + 1) % 3]
         order = _argsort(keys)
-        sorted_keys = keys[order]
-        flipped = False
+        sorted_keys = _take(keys, order)
+        flipped = np.bool_(False)
         for t in range(nt):
             for k in range(3):
                 a, b, c = tri[t, k], tri[t, (k + 1) % 3], tri[t, (k + 2) % 3]
@@ -464,22 +474,22 @@ def _delaunay_flips(xy: np.ndarray, tri: np.ndarray, nt: int, eu: np.ndarray, ev
 def _boundary_cycle(location: np.ndarray, edge_param: np.ndarray) -> np.ndarray:
     """(nb,) int64 boundary cycle: corner 0, edge 0 points by ``edge_param``, corner 1, ..., edge 2 points."""
     n = location.shape[0]
-    n_edge_points = 0
+    n_edge_points = np.int64(0)  # np.int64, not literals, for values a loop updates: typed in numba's first pass
     for i in range(3, n):
         if location[i] < LOCATION_INTERIOR:
             n_edge_points += 1
     bnd = np.empty(3 + n_edge_points, dtype=np.int64)
-    nb = 0
+    nb = np.int64(0)
     for k in range(3):
         bnd[nb] = k
         nb += 1
-        cnt = 0
+        cnt = np.int64(0)
         for i in range(3, n):
             if location[i] == LOCATION_EDGE + k:
                 cnt += 1
         idx = np.empty(cnt, dtype=np.int64)
         par = np.empty(cnt, dtype=np.float64)
-        cnt = 0
+        cnt = np.int64(0)
         for i in range(3, n):
             if location[i] == LOCATION_EDGE + k:
                 idx[cnt] = i
@@ -510,7 +520,7 @@ def _graph_edges(bnd: np.ndarray, location: np.ndarray, segments: np.ndarray) ->
         ev[i] = bnd[(i + 1) % nb]
     ne = nb
     keys = np.empty(m, dtype=np.int64)
-    nk = 0
+    nk = np.int64(0)
     for s in range(m):
         a = segments[s, 0]
         b = segments[s, 1]
@@ -521,7 +531,7 @@ def _graph_edges(bnd: np.ndarray, location: np.ndarray, segments: np.ndarray) ->
         keys[nk] = min(a, b) * n + max(a, b)
         nk += 1
     used = keys[:nk]
-    sorted_keys = used[_argsort(used)]
+    sorted_keys = _take(used, _argsort(used))
     for j in range(nk):
         if j > 0 and sorted_keys[j] == sorted_keys[j - 1]:
             continue
@@ -575,7 +585,7 @@ def _half_edges(
         fill[orig[h]] += 1
     pos = np.empty(nh, dtype=np.int64)
     next_he = np.empty(nh, dtype=np.int64)
-    ok = True
+    ok = np.bool_(True)
     for v in range(n):
         s0 = out_start[v]
         d = deg[v]
@@ -608,7 +618,7 @@ def _faces(next_he: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     nh = next_he.shape[0]
     face_of = np.full(nh, -1, dtype=np.int64)
     face_first = np.empty(nh, dtype=np.int64)
-    nf = 0
+    nf = np.int64(0)
     for h in range(nh):
         if face_of[h] >= 0:
             continue
@@ -642,13 +652,13 @@ def _components(
     comp = np.full(n, -1, dtype=np.int64)
     stack = np.empty(n, dtype=np.int64)
     lexmin = np.empty(n, dtype=np.int64)
-    nc = 0
+    nc = np.int64(0)
     for s in range(n):
         if out_start[s + 1] == out_start[s] or comp[s] >= 0:
             continue
         comp[s] = nc
         lexmin[nc] = s
-        top = 1
+        top = np.int64(1)
         stack[0] = s
         while top > 0:
             top -= 1
@@ -694,7 +704,7 @@ def _hole_faces(
         if c == skip:
             continue
         v = lexmin[c]
-        best = -2
+        best = np.int64(-2)
         for f in range(nf):
             if is_outer[f] or face_comp[f] == c:
                 continue
@@ -782,7 +792,7 @@ def _merge_holes(
         Number of occurrences in ``merged`` (-1 if a hole cannot be bridged)
         and the updated ``n_occ``.
     """
-    mc = 0
+    mc = np.int64(0)
     o = first
     while True:
         merged[mc] = o
@@ -841,7 +851,7 @@ def _ear_clip(
     (only possible for inconsistent input).
     """
     cur = start
-    misses = 0
+    misses = np.int64(0)
     while count > 3:
         a_occ = prv[cur]
         c_occ = nxt[cur]
@@ -853,7 +863,7 @@ def _ear_clip(
             nxt[a_occ] = c_occ
             prv[c_occ] = a_occ
             count -= 1
-            misses = 0
+            misses = np.int64(0)
         else:
             misses += 1
             if misses > count:
@@ -915,6 +925,17 @@ def cut_triangle(
     otherwise only used to order bridge candidates. The locations are
     trusted, never recomputed from ``xy``.
     """
+    return _cut(xy, location, edge_param, segments, True)
+
+
+@njit(cache=True)
+def _cut(
+    xy: np.ndarray, location: np.ndarray, edge_param: np.ndarray, segments: np.ndarray, insert_isolated: bool | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`cut_triangle`, whose result it returns; ``insert_isolated`` None (not False) compiles it
+    without the insertion of isolated interior points, a sizeable part of the code that a Boolean
+    operation never needs: a triangle with such points then returns no triangles and a region array of
+    one element, for the caller to cut it with :func:`cut_triangle`."""
     n = xy.shape[0]
     if n < 3 or xy.shape[1] != 2 or location.shape[0] != n or edge_param.shape[0] != n or segments.shape[1] != 2:
         return _empty_result()
@@ -946,7 +967,7 @@ def cut_triangle(
     for c in range(nc):
         is_outer[face_of[outer_he[c]]] = True
     bc = comp[0]
-    h_cw = -1  # corner 0 -> previous boundary point runs clockwise: on the outer face
+    h_cw = np.int64(-1)  # corner 0 -> previous boundary point runs clockwise: on the outer face
     for i in range(out_start[0], out_start[1]):
         if dest[out_he[i]] == bnd[bnd.shape[0] - 1]:
             h_cw = out_he[i]
@@ -954,7 +975,7 @@ def cut_triangle(
         return _empty_result()
     face_comp = np.empty(nf, dtype=np.int64)
     region_of_face = np.full(nf, -1, dtype=np.int64)
-    n_regions = 0
+    n_regions = np.int64(0)
     for f in range(nf):
         face_comp[f] = comp[orig[face_first[f]]]
         if not is_outer[f]:
@@ -978,17 +999,19 @@ def cut_triangle(
     n_occ = nh
     merged = np.empty(cap, dtype=np.int64)
     holes = np.empty(nc, dtype=np.int64)
-    n_iso = 0
+    n_iso = np.int64(0)
     for i in range(3, n):
         if comp[i] < 0 and location[i] == LOCATION_INTERIOR:
             n_iso += 1
+    if insert_isolated is None and n_iso > 0:  # left to the caller
+        return np.empty((0, 3), dtype=np.int64), np.empty(1, dtype=np.int64)
     tri = np.empty((cap + 2 * n_iso, 3), dtype=np.int64)
     reg = np.empty(cap + 2 * n_iso, dtype=np.int64)
     nt = np.int64(0)  # not the literal 0: callees would be compiled for it as well as for int64
     for f in range(nf):
         if is_outer[f]:
             continue
-        n_holes = 0
+        n_holes = np.int64(0)
         for c in range(nc):  # the face's holes, sorted by smallest vertex
             if hole_face[c] == f:
                 j = n_holes
@@ -1003,13 +1026,14 @@ def cut_triangle(
         new_nt = _ear_clip(xy, pt, nxt, prv, merged[0], mc, tri, nt)
         if new_nt < 0:
             return _empty_result()
-        reg[nt:new_nt] = region_of_face[f]
+        for t in range(nt, new_nt):
+            reg[t] = region_of_face[f]
         nt = new_nt
 
-    # isolated interior points
-    for i in range(3, n):
-        if comp[i] < 0 and location[i] == LOCATION_INTERIOR:
-            nt = _insert_point(xy, tri, reg, nt, i)
+    if insert_isolated is not None:  # pruned when compiled for None
+        for i in range(3, n):
+            if comp[i] < 0 and location[i] == LOCATION_INTERIOR:
+                nt = _insert_point(xy, tri, reg, nt, i)
     _delaunay_flips(xy, tri, nt, eu, ev)
     return tri[:nt].copy(), reg[:nt].copy()
 
@@ -1070,6 +1094,12 @@ def cut_triangles(
     count = np.zeros(max(n_tri, 0), dtype=np.int64)
     for_ranges(_cut_range, max(n_tri, 0), xy, location, edge_param, point_start, segments, segment_start, slot,
                tri_out, reg_out, count, min_items=HEAVY_ITEMS_PER_RANGE)
+    for i in np.flatnonzero(count < 0):  # triangles with isolated interior points (rare): the full cut
+        p0, p1, s0, s1 = point_start[i], point_start[i + 1], segment_start[i], segment_start[i + 1]
+        t, r = cut_triangle(xy[p0:p1], location[p0:p1], edge_param[p0:p1], segments[s0:s1])
+        count[i] = t.shape[0] if t.shape[0] <= slot[i + 1] - slot[i] else 0
+        tri_out[slot[i]:slot[i] + count[i]] = t[:count[i]]
+        reg_out[slot[i]:slot[i] + count[i]] = r[:count[i]]
     triangle_start = np.zeros(max(n_tri, 0) + 1, dtype=np.int64)
     np.cumsum(count, out=triangle_start[1:])
     keep = np.repeat(slot[:-1] - triangle_start[:-1], count) + np.arange(triangle_start[-1])
@@ -1080,7 +1110,7 @@ def cut_triangles(
 def _cut_range(xy, location, edge_param, point_start, segments, segment_start, slot, tri_out, reg_out, count, first,
                last):
     """:func:`cut_triangle` on triangles ``first`` to ``last``; each writes its slot of ``tri_out`` and
-    ``reg_out`` and its count."""
+    ``reg_out`` and its count, -1 for a triangle with isolated interior points (left to the caller)."""
     n_pts = xy.shape[0]
     n_seg = segments.shape[0]
     for i in range(first, last):
@@ -1089,8 +1119,11 @@ def _cut_range(xy, location, edge_param, point_start, segments, segment_start, s
         s0 = segment_start[i]
         s1 = segment_start[i + 1]
         if 0 <= p0 <= p1 <= n_pts and 0 <= s0 <= s1 <= n_seg:
-            t, r = cut_triangle(xy[p0:p1], location[p0:p1], edge_param[p0:p1], segments[s0:s1])
+            t, r = _cut(xy[p0:p1], location[p0:p1], edge_param[p0:p1], segments[s0:s1], None)
             k = t.shape[0]
+            if r.shape[0] > k:
+                count[i] = -1
+                continue
             if k <= slot[i + 1] - slot[i]:
                 for j in range(k):
                     tri_out[slot[i] + j, 0] = t[j, 0]

@@ -186,7 +186,7 @@ def _expansion_sum(w: np.ndarray, e: int, elen: int, f: int, flen: int, h: int) 
     else:
         q = w[j]
         j += 1
-    n = 0
+    n = np.int64(0)
     while i < i_end or j < j_end:
         if j >= j_end or (i < i_end and abs(w[i]) <= abs(w[j])):
             g = w[i]

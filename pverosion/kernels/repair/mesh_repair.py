@@ -155,7 +155,7 @@ def _edge_keys(canon, faces):
 def _edge_matches(wanted, keys):
     """Every (i, j) with ``wanted[i] == keys[j]`` (W,) and (K,) int64 >= 0, as two arrays, by a hash table of
     ``wanted`` (one pass over ``keys`` instead of a sort of them)."""
-    size = 16
+    size = np.int64(16)  # np.int64, not literals, for values a loop updates: typed in numba's first pass
     while size < 2 * wanted.shape[0]:
         size *= 2
     table = np.full(size, -1, np.int64)  # the first row of every distinct wanted key
@@ -170,12 +170,12 @@ def _edge_matches(wanted, keys):
         else:
             chain[last[slot]] = i
         last[slot] = i
-    n = 0
+    n = np.int64(0)
     for phase in range(2):  # count, then fill
         if phase == 1:
             rows = np.empty(n, np.int64)
             cols = np.empty(n, np.int64)
-            n = 0
+            n = np.int64(0)
         for j in range(keys.shape[0]):
             slot = (keys[j] * 0x1E3779B97F4A7C15 >> 17) & (size - 1)
             while table[slot] >= 0 and wanted[table[slot]] != keys[j]:
@@ -205,7 +205,7 @@ def _face_point_rows(fcs, canon, pairs, segments, locations):
     on each of its two faces, then of every end inside an edge on every face with that edge."""
     n_seg = segments.shape[0]
     own = np.empty((4 * n_seg, 3), np.int64)
-    n_edge = 0
+    n_edge = np.int64(0)
     for side in range(2):
         for s in range(n_seg):
             for e in range(2):
@@ -216,7 +216,7 @@ def _face_point_rows(fcs, canon, pairs, segments, locations):
     keys = _edge_keys(canon, fcs)
     on_edge = np.empty(n_edge, np.int64)  # the own rows inside an edge, and the key of that edge
     edge_key = np.empty(n_edge, np.int64)
-    n_edge = 0
+    n_edge = np.int64(0)
     for r in range(own.shape[0]):
         if 3 <= own[r, 2] < 6:
             on_edge[n_edge] = r
@@ -271,7 +271,7 @@ def _cut_input(pts, fcs, canon, table, cut, row_start, curve_points, point_id, p
     n_cut = cut.shape[0]
     point_start = np.zeros(n_cut + 1, np.int64)
     for c in range(n_cut):
-        n_other = 0
+        n_other = np.int64(0)
         for r in range(row_start[c], row_start[c + 1]):
             if table[r, 2] >= 3:
                 n_other += 1
@@ -376,7 +376,7 @@ def _patches(faces, n_vertices, cut_edges, pairs_only=False):
             if at < cut_edges.shape[0] and cut_edges[at] == a * n_vertices + b:
                 continue
             if pairs_only:
-                others = 0
+                others = np.int64(0)
                 for s in range(indptr[a], indptr[a + 1]):
                     g = face_ids[s]
                     if g != f and (faces[g, 0] == b or faces[g, 1] == b or faces[g, 2] == b):
@@ -390,7 +390,7 @@ def _patches(faces, n_vertices, cut_edges, pairs_only=False):
                     if r != q:
                         parent[max(r, q)] = min(r, q)
     label = np.full(faces.shape[0], -1, np.int64)
-    count = 0
+    count = np.int64(0)
     for f in range(faces.shape[0]):
         r = _root(parent, f)
         if label[r] < 0:
@@ -502,7 +502,7 @@ def _few_windings(points, faces, face_group, reps, groups):
     turned = np.empty_like(points)
     query = np.empty(3)
     for a in range(3):
-        wanted = False
+        wanted = np.bool_(False)
         for r in range(n_reps):
             wanted = wanted or axis[r] == a
         if not wanted:
@@ -553,7 +553,7 @@ def _coincident_faces(pts, fcs, centre, own, axis, start, partners):
     for q in range(centre.shape[0]):
         size += start[own[q] + 1] - start[own[q]]
     found = np.empty(size, np.int64)
-    n = 0
+    n = np.int64(0)
     for q in range(centre.shape[0]):
         f, a = own[q], axis[q]
         i, j = (a + 1) % 3, (a + 2) % 3
@@ -640,7 +640,7 @@ def _representatives(points, faces, patch):
     """A face of every patch, in patch order: the one whose normal has the largest z component (its centroid
     is away from the patch's rim on a coarse patch; rays along z need no second index), the first such face on
     a tie."""
-    n_patches = 0
+    n_patches = np.int64(0)
     for f in range(patch.shape[0]):  # patch.max() + 1, whose compilation costs more
         n_patches = max(n_patches, patch[f] + 1)
     best = np.full(n_patches, -np.inf)
@@ -754,7 +754,7 @@ def _shells(points, faces):
 def _shell_sizes(points, faces, shell):
     """Signed volume and area of every shell (labels ``shell`` (F,), 0..S-1): sums over the faces in order of the
     volumes of the tetrahedra from the points' lowest corner and of the faces' areas."""
-    n = 0
+    n = np.int64(0)
     for f in range(shell.shape[0]):  # shell.max() + 1, whose compilation costs more
         n = max(n, shell[f] + 1)
     origin = np.full(3, np.inf)
