@@ -144,6 +144,7 @@ def _propagate_parts(faces, partner, bounds, state, seed_of, stack, seeds, n_see
             while top > 0:
                 top -= 1
                 f = stack[lo + top]
+                here = state[f]
                 for k in range(3):
                     h = 3 * f + k
                     q = partner[h]
@@ -155,13 +156,14 @@ def _propagate_parts(faces, partner, bounds, state, seed_of, stack, seeds, n_see
                             cross[3 * lo + n_out] = h
                             n_out += 1
                         continue
-                    turn = (state[f] & _FLIP) ^ (_FLIP if _same_direction(state, h, q) else np.uint8(0))
-                    if not state[g] & _SEEN:
-                        state[g] |= _SEEN | turn
+                    there = state[g]
+                    turn = (here & _FLIP) ^ (_FLIP if ((here >> k) ^ (there >> (q - 3 * g))) & 1 == 0 else 0)
+                    if not there & _SEEN:
+                        state[g] = there | _SEEN | turn
                         seed_of[g] = seed
                         stack[lo + top] = g
                         top += 1
-                    elif h < q and (state[g] & _FLIP) != turn:
+                    elif h < q and (there & _FLIP) != turn:
                         conflict[p] = True
         n_seeds[p] = n_seed
         n_cross[p] = n_out
