@@ -169,7 +169,7 @@ def _propagate_parts(faces, partner, bounds, state, seed_of, stack, seeds, n_see
         n_cross[p] = n_out
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _find_parity(parent, parity, x):
     """Root of ``x`` in the forest ``parent`` and the parity of ``x`` relative to it (``parity`` holds each
     node's parity relative to its parent), compressing the path."""
