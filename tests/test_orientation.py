@@ -191,7 +191,8 @@ def _serial_propagation(faces, partner):
 
 
 @pytest.mark.parametrize("case", ["shells", "moebius"])
-def test_propagation_in_parts_equals_one_serial_pass_whatever_the_threads(case):
+def test_propagation_in_parts_equals_one_serial_pass_whatever_the_threads(case, monkeypatch):
+    monkeypatch.setattr(orientation, "SPLIT_FACES", 4096)  # split these small meshes too
     if case == "shells":  # 10 scrambled spheres in shuffled face order: several parts, components across parts
         s = icosphere(1.0, 3)
         p = np.vstack([np.asarray(s.points) + [3.0 * k, 0.0, 0.0] for k in range(10)])

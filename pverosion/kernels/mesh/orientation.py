@@ -30,6 +30,10 @@ ORIENTATIONS = ("outward", "inward", "keep")
 APPLY_FACES_PER_RANGE = 1 << 17
 """Smallest range of faces a thread reverses: a copy of fewer faces costs less than handing it to a thread."""
 
+SPLIT_FACES = 1 << 18
+"""Fewest faces whose propagation is split over the threads: on fewer, whose states stay in a core's caches,
+one serial pass costs less than the parts and their union-find."""
+
 
 @dataclass(frozen=True)
 class Orientation:
@@ -236,7 +240,7 @@ def _merge_parts(partner, bounds, state, seed_of, seeds, n_seeds, cross, n_cross
 
 
 def _propagate_split(faces: np.ndarray, partner: np.ndarray) -> tuple[np.ndarray, ...]:
-    """:func:`_propagate` with the faces split into one part per thread.
+    """:func:`_propagate`, with the faces split into one part per thread from :data:`SPLIT_FACES` faces on.
 
     Returns ``state`` (F,) uint8, ``labels`` (F,), ``root_comp``, ``root_flip`` and the number of components:
     face ``f`` is in component ``root_comp[labels[f]]`` and flips when the :data:`_FLIP` bit of
@@ -247,27 +251,25 @@ def _propagate_split(faces: np.ndarray, partner: np.ndarray) -> tuple[np.ndarray
     """
     n_faces = faces.shape[0]
     parts = range_count(n_faces)
-    bounds = np.array([p * n_faces // parts for p in range(parts + 1)], np.int64)
     index = partner.dtype  # face and half-edge indices as compact as the twins
-    state = np.empty(n_faces, np.uint8)
-    labels, seeds, stack = np.empty(n_faces, index), np.empty(n_faces, index), np.empty(n_faces, index)
-    cross = np.empty(3 * n_faces, index)
-    n_seeds, n_cross = np.zeros(parts, np.int64), np.zeros(parts, np.int64)
-    conflict = np.zeros(parts, np.bool_)
-    for_ranges(_propagate_parts, parts, faces, partner, bounds, state, labels, stack, seeds, n_seeds, cross,
-               n_cross, conflict, min_items=1)
-    root_comp, root_flip = np.empty(n_faces, np.int64), np.empty(n_faces, np.bool_)
-    n_comp = -1
-    if not conflict.any():
-        n_comp = _merge_parts(partner, bounds, state, labels, seeds, n_seeds, cross, n_cross, stack,
-                              np.empty(n_faces, np.bool_), root_comp, root_flip)
-    if n_comp < 0:
-        flip = np.zeros(n_faces, np.bool_)
-        labels[:] = -1
-        n_comp = _propagate(faces, partner, flip, labels, stack)
-        state = flip.view(np.uint8) * _FLIP
-        root_comp, root_flip = np.arange(n_comp), np.zeros(n_comp, np.bool_)
-    return state, labels, root_comp, root_flip, n_comp
+    labels, stack = np.empty(n_faces, index), np.empty(n_faces, index)
+    if parts > 1 and n_faces >= SPLIT_FACES:
+        bounds = np.array([p * n_faces // parts for p in range(parts + 1)], np.int64)
+        state, seeds, cross = np.empty(n_faces, np.uint8), np.empty(n_faces, index), np.empty(3 * n_faces, index)
+        n_seeds, n_cross = np.zeros(parts, np.int64), np.zeros(parts, np.int64)
+        conflict = np.zeros(parts, np.bool_)
+        for_ranges(_propagate_parts, parts, faces, partner, bounds, state, labels, stack, seeds, n_seeds, cross,
+                   n_cross, conflict, min_items=1)
+        if not conflict.any():
+            root_comp, root_flip = np.empty(n_faces, np.int64), np.empty(n_faces, np.bool_)
+            n_comp = _merge_parts(partner, bounds, state, labels, seeds, n_seeds, cross, n_cross, stack,
+                                  np.empty(n_faces, np.bool_), root_comp, root_flip)
+            if n_comp >= 0:
+                return state, labels, root_comp, root_flip, n_comp
+    flip = np.zeros(n_faces, np.bool_)
+    labels[:] = -1
+    n_comp = _propagate(faces, partner, flip, labels, stack)
+    return flip.view(np.uint8) * _FLIP, labels, np.arange(n_comp), np.zeros(n_comp, np.bool_), n_comp
 
 
 @njit(cache=True, error_model="numpy")
