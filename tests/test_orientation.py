@@ -1,9 +1,11 @@
 import numpy as np
 import pytest
-from conftest import height_field, icosphere
+from conftest import height_field, icosphere, one_and_all_threads
 
 from pverosion.kernels import orient_faces, signed_volume, winding_number
+from pverosion.kernels.mesh import orientation
 from pverosion.kernels.mesh.orientation import orient_sorted
+from pverosion.kernels.mesh.topology import sorted_twins
 
 
 def _scramble(faces, seed=0):
@@ -164,3 +166,51 @@ def test_consistent_open_hemisphere_is_turned_to_face_out(reverse):
     np.testing.assert_array_equal(o.faces, faces[:, [0, 2, 1]] if reverse else cap)  # a flip swaps the last two
     normals = np.cross(p[o.faces[:, 1]] - p[o.faces[:, 0]], p[o.faces[:, 2]] - p[o.faces[:, 0]])
     assert np.all(np.einsum("ij,ij->i", normals, p[o.faces].mean(axis=1)) > 0)  # away from the centre
+
+
+def _moebius_strip(n: int = 1200, w: int = 2):
+    """A Möbius strip of ``n`` x ``w`` quads (2 n w triangles), its ends glued with a half twist."""
+    u = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)[:, None]
+    t = np.linspace(-0.3, 0.3, w + 1)[None, :]
+    r = 1.0 + t * np.cos(u / 2)
+    p = np.stack([r * np.cos(u), r * np.sin(u), t * np.sin(u / 2)], axis=-1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(n), np.arange(w), indexing="ij")
+    a, b = i * (w + 1) + j, i * (w + 1) + j + 1
+    last = i == n - 1  # the glued quads meet the first column upside down
+    c = np.where(last, w - j - 1, (i + 1) * (w + 1) + j + 1)
+    d = np.where(last, w - j, (i + 1) * (w + 1) + j)
+    f = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    return p, f
+
+
+def _serial_propagation(faces, partner):
+    flip = np.zeros(len(faces), bool)
+    component = np.full(len(faces), -1, np.int64)
+    n = orientation._propagate(faces, partner, flip, component, np.empty(len(faces), partner.dtype))
+    return flip, component, n
+
+
+@pytest.mark.parametrize("case", ["shells", "moebius"])
+def test_propagation_in_parts_equals_one_serial_pass_whatever_the_threads(case, monkeypatch):
+    monkeypatch.setattr(orientation, "SPLIT_FACES", 4096)  # split these small meshes too
+    if case == "shells":  # 10 scrambled spheres in shuffled face order: several parts, components across parts
+        s = icosphere(1.0, 3)
+        p = np.vstack([np.asarray(s.points) + [3.0 * k, 0.0, 0.0] for k in range(10)])
+        f = np.vstack([_scramble(s.regular_faces, k)[0] + k * s.n_points for k in range(10)])
+        f = f[np.random.default_rng(11).permutation(len(f))]
+    else:
+        p, f = _moebius_strip()
+        f = _scramble(f, 12)[0]
+    one, many = one_and_all_threads(lambda: orient_sorted(p, f))
+    for name in ("order", "faces", "flip", "component"):
+        np.testing.assert_array_equal(getattr(one, name), getattr(many, name))
+    _, local, partner, _ = sorted_twins(f, len(p))
+    flip, component, n_comp = _serial_propagation(local, partner)
+    h = np.flatnonzero(partner >= 0)
+    same = local.ravel()[h] == local.ravel()[partner[h]]  # twins that start at the same vertex
+    assert np.any((flip[h // 3] ^ flip[partner[h] // 3]) != same) == (case == "moebius")  # non-orientable
+    state, labels, root_comp, root_flip, n_split = one_and_all_threads(
+        lambda: orientation._propagate_split(local, partner))[1]
+    assert n_split == n_comp == (10 if case == "shells" else 1)
+    np.testing.assert_array_equal(root_comp[labels], component)
+    np.testing.assert_array_equal((state & orientation._FLIP != 0) ^ root_flip[labels], flip)

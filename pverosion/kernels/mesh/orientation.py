@@ -18,7 +18,7 @@ from numba import njit
 
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, chunk_range
-from pverosion.kernels._threads import for_chunks, for_ranges
+from pverosion.kernels._threads import for_chunks, for_ranges, range_count
 from pverosion.kernels.mesh.locality import locality_renumbering
 from pverosion.kernels.mesh.topology import sorted_twins
 
@@ -29,6 +29,10 @@ ORIENTATIONS = ("outward", "inward", "keep")
 
 APPLY_FACES_PER_RANGE = 1 << 17
 """Smallest range of faces a thread reverses: a copy of fewer faces costs less than handing it to a thread."""
+
+SPLIT_FACES = 1 << 18
+"""Fewest faces whose propagation is split over the threads: on fewer, whose states stay in a core's caches,
+one serial pass costs less than the parts and their union-find."""
 
 
 @dataclass(frozen=True)
@@ -98,6 +102,176 @@ def _propagate(faces, partner, flip, comp, stack):
     return n_comp
 
 
+_FLIP = np.uint8(8)
+"""Bit of a face's state (:func:`_propagate_parts`) set when the face turns relative to its seed."""
+
+_SEEN = np.uint8(16)
+"""Bit of a face's state set once the propagation has reached the face."""
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _same_direction(state, h, q):
+    """Whether half-edges ``h`` and ``q`` run the same way, from the face states' ascending bits."""
+    return ((state[h // 3] >> (h % 3)) & 1) == ((state[q // 3] >> (q % 3)) & 1)
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _propagate_parts(faces, partner, bounds, state, seed_of, stack, seeds, n_seeds, cross, n_cross, conflict,
+                     start, stop):
+    """:func:`_propagate` inside each part ``start`` to ``stop`` of the faces (part ``p`` is ``bounds[p]`` to
+    ``bounds[p + 1]``), across the edges whose two faces are in the part.
+
+    Every face gets in ``state`` (F,) uint8 a bit per half-edge set when it runs from its smaller vertex,
+    :data:`_FLIP` when it turns relative to the first face of its part's component, and :data:`_SEEN`; that
+    first face (its seed) goes to ``seed_of`` (F,). Part ``p`` lists its seeds, ascending, from
+    ``seeds[bounds[p]]`` (``n_seeds[p]`` of them) and the half-edges to other parts (each pair once, from its
+    lower half-edge) from ``cross[3 bounds[p]]`` (``n_cross[p]``); ``conflict[p]`` is set when an edge inside
+    the part joins two faces the other way than their flips (a non-orientable component). ``stack`` (F,) is
+    scratch.
+    """
+    for p in range(start, stop):
+        lo, hi = bounds[p], bounds[p + 1]
+        for f in range(lo, hi):
+            a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
+            state[f] = np.uint8((a0 < a1) | ((a1 < a2) << 1) | ((a2 < a0) << 2))
+        n_seed = 0
+        n_out = 0
+        for seed in range(lo, hi):
+            if state[seed] & _SEEN:
+                continue
+            state[seed] |= _SEEN
+            seed_of[seed] = seed
+            seeds[lo + n_seed] = seed
+            n_seed += 1
+            stack[lo] = seed
+            top = 1
+            while top > 0:
+                top -= 1
+                f = stack[lo + top]
+                here = state[f]
+                for k in range(3):
+                    h = 3 * f + k
+                    q = partner[h]
+                    if q < 0:
+                        continue
+                    g = q // 3
+                    if g < lo or g >= hi:
+                        if h < q:
+                            cross[3 * lo + n_out] = h
+                            n_out += 1
+                        continue
+                    there = state[g]
+                    turn = (here & _FLIP) ^ (_FLIP if ((here >> k) ^ (there >> (q - 3 * g))) & 1 == 0 else 0)
+                    if not there & _SEEN:
+                        state[g] = there | _SEEN | turn
+                        seed_of[g] = seed
+                        stack[lo + top] = g
+                        top += 1
+                    elif h < q and (there & _FLIP) != turn:
+                        conflict[p] = True
+        n_seeds[p] = n_seed
+        n_cross[p] = n_out
+
+
+@njit(cache=True, error_model="numpy")
+def _find_parity(parent, parity, x):
+    """Root of ``x`` in the forest ``parent`` and the parity of ``x`` relative to it (``parity`` holds each
+    node's parity relative to its parent), compressing the path."""
+    root = x
+    total = False
+    while parent[root] != root:
+        total ^= parity[root]
+        root = parent[root]
+    y = x
+    here = total
+    while parent[y] != y:
+        up = parent[y]
+        above = here ^ parity[y]
+        parent[y] = root
+        parity[y] = here
+        y = up
+        here = above
+    return root, total
+
+
+@njit(cache=True, error_model="numpy")
+def _merge_parts(partner, bounds, state, seed_of, seeds, n_seeds, cross, n_cross, parent, parity,
+                 root_comp, root_flip):
+    """Join the part components of :func:`_propagate_parts` across the edges between parts.
+
+    A union-find over the seeds (``parent`` (F,), ``parity`` (F,) scratch) keeps the lowest seed of every
+    component as its root; each seed ``s`` gets its component, numbered in the order of the roots, in
+    ``root_comp[s]`` and whether its faces flip relative to the root in ``root_flip[s]``. Returns the number of
+    components, or -1 when an edge contradicts the flips (a non-orientable component).
+    """
+    n_parts = bounds.shape[0] - 1
+    for p in range(n_parts):
+        for i in range(bounds[p], bounds[p] + n_seeds[p]):
+            parent[seeds[i]] = seeds[i]
+            parity[seeds[i]] = False
+    for p in range(n_parts):
+        for i in range(3 * bounds[p], 3 * bounds[p] + n_cross[p]):
+            h = cross[i]
+            q = partner[h]
+            f, g = h // 3, q // 3
+            odd = (((state[f] ^ state[g]) & _FLIP) != 0) ^ _same_direction(state, h, q)
+            ra, pa = _find_parity(parent, parity, seed_of[f])
+            rb, pb = _find_parity(parent, parity, seed_of[g])
+            if ra == rb:
+                if (pa ^ pb) != odd:
+                    return -1
+            elif ra < rb:
+                parent[rb] = ra
+                parity[rb] = pa ^ pb ^ odd
+            else:
+                parent[ra] = rb
+                parity[ra] = pa ^ pb ^ odd
+    n_comp = 0
+    for p in range(n_parts):
+        for i in range(bounds[p], bounds[p] + n_seeds[p]):
+            s = seeds[i]
+            root, odd = _find_parity(parent, parity, s)
+            if root == s:
+                root_comp[s] = n_comp
+                n_comp += 1
+            root_comp[s] = root_comp[root]
+            root_flip[s] = odd
+    return n_comp
+
+
+def _propagate_split(faces: np.ndarray, partner: np.ndarray) -> tuple[np.ndarray, ...]:
+    """:func:`_propagate`, with the faces split into one part per thread from :data:`SPLIT_FACES` faces on.
+
+    Returns ``state`` (F,) uint8, ``labels`` (F,), ``root_comp``, ``root_flip`` and the number of components:
+    face ``f`` is in component ``root_comp[labels[f]]`` and flips when the :data:`_FLIP` bit of
+    ``state[f]`` differs from ``root_flip[labels[f]]``. Every part propagates inside itself; a serial
+    union-find joins the parts across the few edges between them (the faces come in an order of spatial
+    locality), so the result is that of one serial pass whatever the number of threads. A non-orientable
+    component, whose flips depend on the path of the propagation, is oriented by the serial pass.
+    """
+    n_faces = faces.shape[0]
+    parts = range_count(n_faces)
+    index = partner.dtype  # face and half-edge indices as compact as the twins
+    labels, stack = np.empty(n_faces, index), np.empty(n_faces, index)
+    if parts > 1 and n_faces >= SPLIT_FACES:
+        bounds = np.array([p * n_faces // parts for p in range(parts + 1)], np.int64)
+        state, seeds, cross = np.empty(n_faces, np.uint8), np.empty(n_faces, index), np.empty(3 * n_faces, index)
+        n_seeds, n_cross = np.zeros(parts, np.int64), np.zeros(parts, np.int64)
+        conflict = np.zeros(parts, np.bool_)
+        for_ranges(_propagate_parts, parts, faces, partner, bounds, state, labels, stack, seeds, n_seeds, cross,
+                   n_cross, conflict, min_items=1)
+        if not conflict.any():
+            root_comp, root_flip = np.empty(n_faces, np.int64), np.empty(n_faces, np.bool_)
+            n_comp = _merge_parts(partner, bounds, state, labels, seeds, n_seeds, cross, n_cross, stack,
+                                  np.empty(n_faces, np.bool_), root_comp, root_flip)
+            if n_comp >= 0:
+                return state, labels, root_comp, root_flip, n_comp
+    flip = np.zeros(n_faces, np.bool_)
+    labels[:] = -1
+    n_comp = _propagate(faces, partner, flip, labels, stack)
+    return flip.view(np.uint8) * _FLIP, labels, np.arange(n_comp), np.zeros(n_comp, np.bool_), n_comp
+
+
 @njit(cache=True, error_model="numpy")
 def _winding(point, points, faces):
     total = 0.0
@@ -161,13 +335,19 @@ def _centre_extent(points):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _volume_chunk(points, faces, flip, component, others, origin, volume, rims, c):
-    """Six times the signed volume of the faces of chunk ``c`` per component into ``volume[c]``, and their
-    boundary half-edges into ``rims[c]``."""
+def _settle_chunk(points, faces, root_comp, root_flip, state, labels, flip, component, others, origin, volume,
+                  rims, c):
+    """Resolve the faces of chunk ``c`` of :func:`_propagate_split` from their ``state`` and ``labels`` into
+    ``flip`` and ``component``, then add six times their signed volume per component into
+    ``volume[c]`` and count their boundary half-edges into ``rims[c]``."""
     start, stop = chunk_range(faces.shape[0], c)
     for f in range(start, stop):
+        label = labels[f]
+        component[f] = root_comp[label]
+        reverse = ((state[f] & _FLIP) != 0) ^ root_flip[label]
+        flip[f] = reverse
         i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-        if flip[f]:
+        if reverse:
             i1, i2 = i2, i1
         a = v3.sub(v3.row(points, i0), origin)
         b = v3.sub(v3.row(points, i1), origin)
@@ -214,22 +394,29 @@ def _hole_cones(points, faces, flip, component, others, origin, volume, rim, par
         volume[component[f]] += v3.dot(pb, v3.cross(pa, apex))
 
 
-def _closed_volumes(points: np.ndarray, faces: np.ndarray, flip: np.ndarray, component: np.ndarray, n_comp: int,
-                    others: np.ndarray) -> tuple[np.ndarray, float]:
-    """Signed volume of every component, with each hole closed by a cone to its rim's centroid, and the
-    largest extent of the points along an axis."""
+def _settled_volumes(points: np.ndarray, faces: np.ndarray, partner: np.ndarray,
+                     others: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, np.ndarray, float]:
+    """The consistent faces of :func:`_propagate_split` and the signed volume of every component, each hole
+    closed by a cone to its rim's centroid, from one more pass over the faces.
+
+    Returns ``flip`` (F,), ``component`` (F,), the number of components, their volumes and the largest
+    extent of the points along an axis.
+    """
+    state, labels, root_comp, root_flip, n_comp = _propagate_split(faces, partner)
+    flip, component = np.empty(faces.shape[0], np.bool_), np.empty(faces.shape[0], np.int64)
     *centre, extent = _centre_extent(points)
     origin = np.array(centre)
     chunks = np.zeros((CHUNKS, n_comp))
     rims = np.zeros(CHUNKS, np.int64)
-    for_chunks(_volume_chunk, faces.shape[0], points, faces, flip, component, others, origin, chunks, rims)
+    for_chunks(_settle_chunk, faces.shape[0], points, faces, root_comp, root_flip, state, labels, flip, component,
+               others, origin, chunks, rims)
     volume = chunks.sum(axis=0)
     n_rim = int(rims.sum())
     if n_rim:
         n_vertices = points.shape[0]
         _hole_cones(points, faces, flip, component, others, origin, volume, np.empty(n_rim, np.int64),
                     np.arange(n_vertices), np.zeros((n_vertices, 3)), np.zeros(n_vertices))
-    return volume / 6.0, extent
+    return flip, component, n_comp, volume / 6.0, extent
 
 
 def orient_faces(
@@ -333,10 +520,7 @@ def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward
     if mode not in ("outward", "inward"):
         raise ValueError(f"orientation must be 'outward' or 'inward'; got {mode!r}")
     order, local, partner, others = sorted_twins(faces, len(points))
-    flip = np.zeros(len(local), np.bool_)
-    component = np.full(len(local), -1, np.int64)
-    n_comp = _propagate(local, partner, flip, component, np.empty(len(local), np.int64))
-    volume, extent = _closed_volumes(points, local, flip, component, n_comp, others)
+    flip, component, n_comp, volume, extent = _settled_volumes(points, local, partner, others)
     decided = np.abs(volume) > 1e-9 * extent**3
     turn = decided & (volume < 0)
     if n_comp > 1:
