@@ -389,22 +389,25 @@ def _match_sorted_range(rows, starts, far_end, far_half, partner, others, start,
             if end < 0:
                 continue
             count = 0
-            for t in range(s + 1, n):
-                if ends[t] == end:
-                    count += 1
-            if count == 0:  # a boundary edge: no twin, no other face
-                partner[halves[s]] = -1
-                others[halves[s]] = 0
+            last = s
+            for t in range(s + 1, n):  # without branches: the ends of a vertex seldom repeat in a pattern
+                same = ends[t] == end
+                count += same
+                last = t if same else last
+            h = halves[s]
+            others[h] = count
+            if count == 1:  # a manifold edge: the two half-edges are twins
+                ends[last] = -1
+                partner[h] = halves[last]
+                partner[halves[last]] = h
+                others[halves[last]] = 1
                 continue
-            twin = -1  # the other half-edge of a manifold edge, else -1
-            for t in range(s + 1, n):
+            partner[h] = -1  # a boundary edge (count 0) or a non-manifold one
+            for t in range(s + 1, n if count else 0):
                 if ends[t] == end:
                     ends[t] = -1
                     others[halves[t]] = count
-                    partner[halves[t]] = halves[s] if count == 1 else -1
-                    twin = halves[t] if count == 1 else -1
-            partner[halves[s]] = twin
-            others[halves[s]] = count
+                    partner[halves[t]] = -1
 
 
 def _sorted_twins_of_triangles(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, ...] | None:
