@@ -341,9 +341,14 @@ def _settle_chunk(points, faces, root_comp, root_flip, state, labels, flip, comp
     ``flip`` and ``component``, then add six times their signed volume per component into
     ``volume[c]`` and count their boundary half-edges into ``rims[c]``."""
     start, stop = chunk_range(faces.shape[0], c)
+    origin = (origin[0], origin[1], origin[2])  # in registers: the stores below could alias the array
+    n_rim = 0
+    here = -1  # the component whose volume ``total`` holds, added in face order as the array would be
+    total = 0.0
     for f in range(start, stop):
         label = labels[f]
-        component[f] = root_comp[label]
+        comp = root_comp[label]
+        component[f] = comp
         reverse = ((state[f] & _FLIP) != 0) ^ root_flip[label]
         flip[f] = reverse
         i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
@@ -352,10 +357,17 @@ def _settle_chunk(points, faces, root_comp, root_flip, state, labels, flip, comp
         a = v3.sub(v3.row(points, i0), origin)
         b = v3.sub(v3.row(points, i1), origin)
         cc = v3.sub(v3.row(points, i2), origin)
-        volume[c, component[f]] += v3.dot(a, v3.cross(b, cc))
-        for k in range(3):
-            if others[3 * f + k] == 0:
-                rims[c] += 1
+        if comp != here:
+            if here >= 0:
+                volume[c, here] = total
+            here = comp
+            total = volume[c, comp]
+        total += v3.dot(a, v3.cross(b, cc))
+        h = 3 * f
+        n_rim += (others[h] == 0) + (others[h + 1] == 0) + (others[h + 2] == 0)
+    if here >= 0:
+        volume[c, here] = total
+    rims[c] += n_rim
 
 
 @njit(cache=True, error_model="numpy")
