@@ -303,8 +303,8 @@ def _lowest_corner(a0, a1, a2):
 @njit(cache=True, error_model="numpy", nogil=True)
 def _count_parts(faces, bounds, lows, mids, repeated, start, stop):
     """For parts ``start`` to ``stop`` of the faces (part ``p`` is ``bounds[p]`` to ``bounds[p + 1]``): the faces
-    per smallest vertex into ``lows[p]``, the half-edges per smaller vertex of their edge into ``mids[p]``, and
-    the faces that repeat a corner into ``repeated[p]``."""
+    per smallest vertex into ``lows[p]``, per middle vertex into ``mids[p]``, and the faces that repeat a corner
+    into ``repeated[p]``."""
     for p in range(start, stop):
         for f in range(bounds[p], bounds[p + 1]):
             a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
@@ -313,7 +313,6 @@ def _count_parts(faces, bounds, lows, mids, repeated, start, stop):
                 continue
             j = _lowest_corner(a0, a1, a2)
             lows[p, faces[f, j]] += 1
-            mids[p, faces[f, j]] += 2
             b, c = faces[f, (j + 1) % 3], faces[f, (j + 2) % 3]
             mids[p, b if b < c else c] += 1
 
@@ -321,8 +320,8 @@ def _count_parts(faces, bounds, lows, mids, repeated, start, stop):
 @njit(cache=True, error_model="numpy")
 def _part_offsets(lows, mids, starts):
     """Turn the per-part counts (P, V) of :func:`_count_parts` into the first sorted position of each part's faces
-    per smallest vertex and of its half-edges per smaller vertex (exclusive running sums in vertex-major,
-    part-minor order), in place; ``starts`` (2, V + 1) gets where the faces and the half-edges of each vertex
+    per smallest vertex and of its far edges per middle vertex (exclusive running sums in vertex-major,
+    part-minor order), in place; ``starts`` (2, V + 1) gets where the faces and the far edges of each vertex
     start."""
     n_parts, n_vertices = lows.shape
     faces_before = 0
@@ -342,57 +341,69 @@ def _part_offsets(lows, mids, starts):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _fill_parts(faces, bounds, lows, mids, order, rows, ends, halves, start, stop):
-    """Place the faces of parts ``start`` to ``stop`` at their sorted positions, and each of their half-edges in
-    the slots of the smaller vertex of its edge: the larger vertex into ``ends`` and the half-edge of the sorted
-    faces into ``halves``."""
+def _fill_parts(faces, bounds, lows, mids, order, rows, far_end, far_half, start, stop):
+    """Place the faces of parts ``start`` to ``stop`` at their sorted positions, and the far edge of each (the
+    one away from its smallest vertex) in the slots of its smaller vertex: its larger vertex into ``far_end``
+    and its half-edge of the sorted faces into ``far_half``."""
     for p in range(start, stop):
         for f in range(bounds[p], bounds[p + 1]):
             a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
             j = _lowest_corner(a0, a1, a2)
-            j1, j2 = (j + 1) % 3, (j + 2) % 3
-            a, b, c = faces[f, j], faces[f, j1], faces[f, j2]
-            i = lows[p, a]
-            lows[p, a] = i + 1
+            i = lows[p, faces[f, j]]
+            lows[p, faces[f, j]] = i + 1
             order[i] = f
             rows[i, 0], rows[i, 1], rows[i, 2] = a0, a1, a2
-            s = mids[p, a]  # the two edges at the smallest vertex
-            mids[p, a] = s + 2
-            ends[s], halves[s] = b, 3 * i + j
-            ends[s + 1], halves[s + 1] = c, 3 * i + j2
-            lo, hi = (b, c) if b < c else (c, b)  # the far edge
+            b, c = faces[f, (j + 1) % 3], faces[f, (j + 2) % 3]
+            lo, hi = (b, c) if b < c else (c, b)
             s = mids[p, lo]
             mids[p, lo] = s + 1
-            ends[s], halves[s] = hi, 3 * i + j1
+            far_end[s] = hi
+            far_half[s] = 3 * i + (j + 1) % 3
 
 
 _TALLY = 40
-"""Bit of a tally of :func:`_match_sorted_range` where the count of an edge's half-edges starts (their slots' sum
-below it, which stays under ``3 F``)."""
+"""Bit of a tally of :func:`_match_sorted_range` where the count of an edge's half-edges starts (the sum of their
+positions in a vertex's list below it)."""
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _match_sorted_range(starts, ends, halves, partner, others, start, stop):
-    """Twins and edge multiplicities of the half-edges of the edges whose smaller vertex is ``start`` to ``stop``,
-    from the slots of each (``starts[1, v]`` to ``starts[1, v + 1]``) of :func:`_fill_parts`.
+def _match_sorted_range(rows, starts, far_end, far_half, partner, others, start, stop):
+    """Twins and edge multiplicities of the half-edges of the edges whose smaller vertex is ``start`` to ``stop``.
 
-    Each end of a vertex's slots tallies its half-edges' count and slot sum, so the twin of a half-edge of a
-    manifold edge is the sum less its own slot: three short passes without data-dependent branches."""
+    The edges of vertex ``v`` to larger vertices are the two at ``v`` of its faces (those with smallest vertex
+    ``v``, sorted rows ``starts[0, v]`` to ``starts[0, v + 1]``) and its far-edge slots. Each end of them tallies
+    its half-edges' count and position sum, so the twin of a half-edge of a manifold edge is the sum less its
+    own position: short passes without data-dependent branches."""
+    ends = np.empty(16, np.int64)
+    halves = np.empty(16, np.int64)
     tally = np.zeros(starts.shape[1] - 1 - start, np.int64)  # per end vertex, offset by ``start``; zero between
     low = (1 << _TALLY) - 1
     for v in range(start, stop):
-        first, last = starts[1, v], starts[1, v + 1]
-        for s in range(first, last):
-            tally[ends[s] - start] += (1 << _TALLY) + s
-        for s in range(first, last):
-            x = tally[ends[s] - start]
+        first, last = starts[0, v], starts[0, v + 1]
+        size = 2 * (last - first) + starts[1, v + 1] - starts[1, v]
+        if size > ends.shape[0]:
+            ends = np.empty(2 * size, np.int64)
+            halves = np.empty(2 * size, np.int64)
+        n = 0
+        for i in range(first, last):
+            j = _lowest_corner(rows[i, 0], rows[i, 1], rows[i, 2])
+            ends[n], halves[n] = rows[i, (j + 1) % 3] - start, 3 * i + j
+            ends[n + 1], halves[n + 1] = rows[i, (j + 2) % 3] - start, 3 * i + (j + 2) % 3
+            n += 2
+        for s in range(starts[1, v], starts[1, v + 1]):
+            ends[n], halves[n] = far_end[s] - start, far_half[s]
+            n += 1
+        for s in range(n):
+            tally[ends[s]] += (1 << _TALLY) + s
+        for s in range(n):
+            x = tally[ends[s]]
             count = (x >> _TALLY) - 1
             h = halves[s]
             others[h] = count  # 0 on a boundary edge
             twin = halves[(x & low) - s if count == 1 else s]
             partner[h] = twin if count == 1 else -1  # -1 on a boundary or non-manifold edge
-        for s in range(first, last):
-            tally[ends[s] - start] = 0
+        for s in range(n):
+            tally[ends[s]] = 0
 
 
 def _sorted_twins_of_triangles(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, ...] | None:
@@ -400,9 +411,10 @@ def _sorted_twins_of_triangles(faces: np.ndarray, n_vertices: int) -> tuple[np.n
 
     Each part of the faces counts and then places its own faces, from offsets
     that put the parts in order, so the result is that of one pass over the
-    faces whatever the number of threads. Besides the sorted faces, the
-    half-edges go to the slots of the smaller vertex of their edge, so that
-    the matching reads the few candidates of every edge from one short run.
+    faces whatever the number of threads. Besides the sorted faces, only the
+    far edge of each face is sorted (into the slots of its smaller vertex):
+    the two other edges start at the face's smallest vertex, so the sorted
+    faces list them per vertex already.
     """
     n_faces = faces.shape[0]
     parts = range_count(n_faces)
@@ -417,11 +429,11 @@ def _sorted_twins_of_triangles(faces: np.ndarray, n_vertices: int) -> tuple[np.n
     _part_offsets(lows, mids, starts)
     order = np.empty(n_faces, np.int64)
     rows = np.empty_like(faces)
-    ends, halves = np.empty(3 * n_faces, np.int32), np.empty(3 * n_faces, np.int32)
-    for_ranges(_fill_parts, parts, faces, bounds, lows, mids, order, rows, ends, halves, min_items=1)
+    far_end, far_half = np.empty(n_faces, np.int32), np.empty(n_faces, np.int32)
+    for_ranges(_fill_parts, parts, faces, bounds, lows, mids, order, rows, far_end, far_half, min_items=1)
     partner = np.empty(3 * n_faces, np.int32)  # every half-edge is in the group of one edge: all are written
     others = np.empty(3 * n_faces, np.int32)
-    for_ranges(_match_sorted_range, n_vertices, starts, ends, halves, partner, others)
+    for_ranges(_match_sorted_range, n_vertices, rows, starts, far_end, far_half, partner, others)
     return order, rows, partner, others
 
 
