@@ -351,18 +351,16 @@ def _settle_chunk(points, faces, root_comp, root_flip, state, labels, flip, comp
         component[f] = comp
         reverse = ((state[f] & _FLIP) != 0) ^ root_flip[label]
         flip[f] = reverse
-        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-        if reverse:
-            i1, i2 = i2, i1
-        a = v3.sub(v3.row(points, i0), origin)
-        b = v3.sub(v3.row(points, i1), origin)
-        cc = v3.sub(v3.row(points, i2), origin)
+        a = v3.sub(v3.row(points, faces[f, 0]), origin)
+        b = v3.sub(v3.row(points, faces[f, 1]), origin)
+        cc = v3.sub(v3.row(points, faces[f, 2]), origin)
+        det = v3.dot(a, v3.cross(b, cc))  # reversing the face negates it exactly
         if comp != here:
             if here >= 0:
                 volume[c, here] = total
             here = comp
             total = volume[c, comp]
-        total += v3.dot(a, v3.cross(b, cc))
+        total += -det if reverse else det
         h = 3 * f
         n_rim += (others[h] == 0) + (others[h + 1] == 0) + (others[h + 2] == 0)
     if here >= 0:
