@@ -361,9 +361,10 @@ def _fill_parts(faces, bounds, lows, mids, order, rows, far_end, far_half, start
             far_half[s] = 3 * i + (j + 1) % 3
 
 
-_TALLY = 40
-"""Bit of a tally of :func:`_match_sorted_range` where the count of an edge's half-edges starts (the sum of their
-positions in a vertex's list below it)."""
+_TALLY = 32
+"""Bit of a tally of :func:`_match_sorted_range` where the count of an edge's half-edges starts; below it, the
+exclusive or of their positions in a vertex's list (under ``3 F``, so under ``2**31`` where the tally is used):
+neither part can carry into the other."""
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -372,8 +373,8 @@ def _match_sorted_range(rows, starts, far_end, far_half, partner, others, start,
 
     The edges of vertex ``v`` to larger vertices are the two at ``v`` of its faces (those with smallest vertex
     ``v``, sorted rows ``starts[0, v]`` to ``starts[0, v + 1]``) and its far-edge slots. Each end of them tallies
-    its half-edges' count and position sum, so the twin of a half-edge of a manifold edge is the sum less its
-    own position: short passes without data-dependent branches."""
+    its half-edges' count and the exclusive or of their positions, so the twin of a half-edge of a manifold edge
+    is that or with its own position taken out: short passes without data-dependent branches."""
     ends = np.empty(16, np.int64)
     halves = np.empty(16, np.int64)
     tally = np.zeros(starts.shape[1] - 1 - start, np.int64)  # per end vertex, offset by ``start``; zero between
@@ -394,13 +395,13 @@ def _match_sorted_range(rows, starts, far_end, far_half, partner, others, start,
             ends[n], halves[n] = far_end[s] - start, far_half[s]
             n += 1
         for s in range(n):
-            tally[ends[s]] += (1 << _TALLY) + s
+            tally[ends[s]] = (tally[ends[s]] + (1 << _TALLY)) ^ s
         for s in range(n):
             x = tally[ends[s]]
             count = (x >> _TALLY) - 1
             h = halves[s]
             others[h] = count  # 0 on a boundary edge
-            twin = halves[(x & low) - s if count == 1 else s]
+            twin = halves[(x & low) ^ s if count == 1 else s]
             partner[h] = twin if count == 1 else -1  # -1 on a boundary or non-manifold edge
         for s in range(n):
             tally[ends[s]] = 0
