@@ -377,7 +377,9 @@ def _match_sorted_range(rows, starts, far_end, far_half, partner, others, start,
     is that or with its own position taken out: short passes without data-dependent branches."""
     ends = np.empty(16, np.int64)
     halves = np.empty(16, np.int64)
-    tally = np.zeros(starts.shape[1] - 1 - start, np.int64)  # per end vertex, offset by ``start``; zero between
+    tally = np.empty(starts.shape[1] - 1 - start, np.int64)  # per end vertex, offset by ``start``; zero between
+    for e in range(tally.shape[0]):  # a loop: np.zeros would compile one more allocation
+        tally[e] = 0
     low = (1 << _TALLY) - 1
     for v in range(start, stop):
         first, last = starts[0, v], starts[0, v + 1]
