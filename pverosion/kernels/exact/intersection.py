@@ -185,8 +185,14 @@ def _spread(x):
 
 
 @njit(cache=True, error_model="numpy")
+def _interleave(sx, sy, sz):
+    """Morton code of a cell from its coordinates spread by :func:`_spread` (the one place of the bit layout)."""
+    return (sx << 2) | (sy << 1) | sz
+
+
+@njit(cache=True, error_model="numpy")
 def _morton(ix, iy, iz):
-    return (_spread(ix) << 2) | (_spread(iy) << 1) | _spread(iz)
+    return _interleave(_spread(ix), _spread(iy), _spread(iz))
 
 
 @njit(cache=True, error_model="numpy")
@@ -288,11 +294,11 @@ def _bucket_range(cell, ok, offset, size, bucket, start, stop):
             continue
         k = offset[f]
         for ix in range(cell[f, 0], cell[f, 3] + 1):
-            x = _spread(ix) << 2
+            sx = _spread(ix)
             for iy in range(cell[f, 1], cell[f, 4] + 1):
-                xy = x | (_spread(iy) << 1)
+                sy = _spread(iy)
                 for iz in range(cell[f, 2], cell[f, 5] + 1):
-                    bucket[k] = (xy | _spread(iz)) & mask
+                    bucket[k] = _interleave(sx, sy, _spread(iz)) & mask  # _hash, the spreads once per row
                     k += 1
 
 
