@@ -9,6 +9,10 @@ from __future__ import annotations
 from importlib import import_module
 from typing import TYPE_CHECKING
 
+from pverosion.kernels import _cache_stamp
+
+_cache_stamp.install()  # before any kernel is defined: a change to any kernel source recompiles them all
+
 _LAZY = {
     "CurvatureOperator": "curvature.operator",
     "CurvatureResult": "curvature.operator",
