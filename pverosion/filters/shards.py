@@ -33,12 +33,15 @@ from pverosion.filters.base import (
     ErosionFilter,
     Param,
     TimeSteppedFilter,
+    check_proper_faces,
     parse_numbers,
     polydata_triangles,
     set_field_value,
     set_multiblock,
 )
 from pverosion.kernels.mesh.geometry import signed_volume
+from pverosion.kernels.mesh.topology import boundary_edges
+from pverosion.kernels.repair.mesh_repair import outward_parts
 from pverosion.kernels.shards.freeze_thaw import (
     CORE,
     FreezeThawParameters,
@@ -58,6 +61,7 @@ from pverosion.kernels.shards.seed_patterns import (
     slab_seeds,
     uniform_seeds,
 )
+from pverosion.kernels.validation import InvalidMeshError
 from pverosion.limits import check_memory, check_work
 
 __all__ = ["CORE_CHOICES", "PATTERNS", "FreezeThaw", "ShardGraph", "pattern_seeds", "shard_blocks"]
@@ -225,6 +229,26 @@ def _path_lines(graph: Graph, record: PathRecord) -> pv.PolyData:
     return out.clean(point_merging=False)
 
 
+def _closed_outward(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points (V, 3) and triangles (F, 3) of a closed mesh, turned outward if its winding is not.
+
+    Raises
+    ------
+    InvalidMeshError
+        Degenerate or duplicated faces, or boundary edges (an open mesh).
+    """
+    check_proper_faces(faces)
+    n_open = len(boundary_edges(np.asarray(faces, np.int64), len(points)))
+    if n_open:
+        raise InvalidMeshError(f"the mesh must be closed: it has {n_open} boundary edges (fill its holes first, "
+                               "e.g. with pverosion.meshing.fill_holes)")
+    directed = np.asarray(faces)[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    consistent = len(np.unique(directed, axis=0)) == len(directed)
+    if not consistent or signed_volume(points, faces) <= 0.0:  # inward or mixed winding: each part outward
+        faces = outward_parts(points, faces)
+    return points, faces
+
+
 class _ShardSource:
     """Generation shared by both filters: seeds from the options, the graph cached per input and options."""
 
@@ -234,7 +258,7 @@ class _ShardSource:
     def _graph(self, inp) -> Graph:
         key = (inp.GetMTime(), self._generation_options())
         if getattr(self, "_graph_key", None) != key:
-            points, faces = polydata_triangles(inp)
+            points, faces = _closed_outward(*polydata_triangles(inp))
             cells = self.get_option("cells")
             check_memory(cells * BYTES_PER_SHARD, option="cells", what=f"a graph of {cells} shards")
             seeds = pattern_seeds(
