@@ -318,3 +318,13 @@ def test_an_operand_far_away_does_not_change_the_other(shift):
     assert union.n_cells == 2 * small.n_cells
     near = union.extract_cells(np.flatnonzero(union.cell_data["source_mesh"] == 0))
     np.testing.assert_array_equal(np.sort(near.points, axis=0), np.sort(points, axis=0))
+
+
+def test_repair_keeps_a_small_part_far_from_the_rest():
+    """A shell is judged empty against its own size: a small closed part a million units from a large one stays."""
+    small, large = pv.Icosphere(radius=1e-3, nsub=2), pv.Icosphere(radius=1.0, nsub=2)
+    points = np.vstack([np.asarray(large.points, np.float64), np.asarray(small.points, np.float64) + [1e6, 0.0, 0.0]])
+    faces = np.vstack([large.regular_faces, small.regular_faces + large.n_points])
+    out = pverosion.repair(pv.PolyData.from_regular_faces(points, faces))
+    assert out.n_cells == len(faces)
+    assert out.volume == pytest.approx(large.volume + small.volume, rel=1e-9)
