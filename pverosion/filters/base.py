@@ -158,7 +158,7 @@ class Param:
         if value is None and (self.numbers is not None or self.convert is not None):
             return ""
         if self.numbers is not None and not isinstance(value, str):
-            return self._vector_text(value)
+            value = self._vector_text(value)  # checked as its text below
         if self.convert is not None and not isinstance(value, str):
             try:
                 return self.convert(value)

@@ -72,6 +72,19 @@ CORE_CHOICES = ("none", "surface")
 BYTES_PER_SHARD = 16384
 """Upper estimate of the memory of one shard (its clipped Voronoi cell, links and output surface)."""
 
+
+def _positive_layers(text: str) -> None:
+    """``ValueError`` unless every thickness of ``layers`` is positive."""
+    if any(value <= 0.0 for value in parse_numbers(text, "layers")):
+        raise ValueError(f"layers must be positive thicknesses; got {text!r}")
+
+
+def _positive_radius(text: str) -> None:
+    """``ValueError`` unless the sphere ``core_window`` x,y,z,r has a positive radius."""
+    if parse_numbers(text, "core_window", count=4)[3] <= 0.0:
+        raise ValueError(f"core_window needs a positive radius r in x,y,z,r; got {text!r}")
+
+
 _GENERATION_PARAMS = (
     Param("cells", 1000, "About how many shards (seed points) to make.", minimum=1),
     Param("pattern", "uniform", "Seed pattern: uniform random, jittered cubic grid, jittered hexagonal columns "
@@ -79,7 +92,7 @@ _GENERATION_PARAMS = (
     Param("jitter", 0.2, "Jitter of the grid, hex and slab patterns, as a fraction of the spacing.", minimum=0.0,
           maximum=0.49, advanced=True),
     Param("layers", "", "Slab thicknesses from the bottom up, as t1,t2,... (cycled; default: the spacing); hex: "
-          "the height of the column pieces (default: whole columns).", numbers=0),
+          "the height of the column pieces (default: whole columns).", numbers=0, parse=_positive_layers),
     Param("tilt", 0.0, "Tilt of the slab pattern about x.", minimum=-90.0, maximum=90.0, units="degrees",
           advanced=True),
     Param("radius_gradient", "0,0,0", "Poisson disc: change of the radius per unit length, as x,y,z.", numbers=3,
@@ -325,7 +338,8 @@ class FreezeThaw(_ShardSource, TimeSteppedFilter):
         Param("core", "none", "Cells never removed: none, or surface (the cells on the mesh surface).",
               choices=CORE_CHOICES),
         Param("core_plane", "", "Also make core the cells whose seed x has n . x >= d, as nx,ny,nz,d.", numbers=4),
-        Param("core_window", "", "Sphere x,y,z,r whose cells are not core (an opening for the erosion).", numbers=4),
+        Param("core_window", "", "Sphere x,y,z,r whose cells are not core (an opening for the erosion).", numbers=4,
+              parse=_positive_radius),
         Param("water_direction", "0,0,-1", "Mean direction the water travels in, as x,y,z.", numbers=3),
         Param("spread", 0.0, "Half-angle of the cone of water directions.", minimum=0.0, maximum=180.0,
               units="degrees", advanced=True),
