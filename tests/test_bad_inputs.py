@@ -73,6 +73,9 @@ def inputs(tmp_path) -> Path:
     points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1.0]])
     pv.PolyData.from_regular_faces(points, np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])).save(tmp_path / "fan.vtp")
     _grid().save(tmp_path / "grid.vti")
+    flat = _grid()
+    flat.spacing = (2.0, 1.0, 1.0)
+    flat.save(tmp_path / "flat.vti")
     pv.ImageData().save(tmp_path / "empty.vti")
     (tmp_path / "zero.vtp").write_bytes(b"")
     (tmp_path / "garbage.ply").write_bytes(np.random.default_rng(0).bytes(2000))
@@ -113,6 +116,9 @@ CASES = {
     "open mesh, shards": (["shard-graph", "open.vtp", "-o", "out.vtm", "--cells", "5"],
                           r"must be closed: it has \d+ boundary edges",
                           lambda d: pverosion.shard_graph(pv.read(d / "open.vtp"), cells=5)),
+    "voxels that are not cubes": (["voxel", "flat.vti", "-o", "out.vtm"],
+                                  r"needs cubic voxels; the grid's spacing is \(2\.0, 1\.0, 1\.0\)$",
+                                  lambda d: pverosion.voxel_erosion(pv.read(d / "flat.vti"))),
     "zero slab thickness": (["shard-graph", "sphere.vtp", "-o", "out.vtm", "--pattern", "slabs", "--layers", "1,0"],
                             r"--layers must be positive thicknesses",
                             lambda d: pverosion.shard_graph(_sphere(), pattern="slabs", layers=(1.0, 0.0))),
