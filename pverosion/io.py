@@ -23,6 +23,7 @@ __all__ = [
     "blocks_folder",
     "check_output_path",
     "check_writable",
+    "read_dataset",
     "read_image",
     "read_mesh",
     "write_atomic",
@@ -220,6 +221,30 @@ def _read(path: Path) -> pv.DataObject:
         vtkObject.SetGlobalWarningDisplay(shown)
     if data is None:
         raise ValueError(f"cannot read {path}: no data in it")
+    return data
+
+
+def read_dataset(path: str | os.PathLike) -> pv.DataObject:
+    """Read any VTK dataset PyVista reads; refuse a file that holds no points.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        If the file is empty, unreadable or damaged (VTK's XML readers then
+        give an empty dataset), or holds no points.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no such file: {path}")
+    data = _read(path)
+    if isinstance(data, pv.MultiBlock):
+        empty = all(block is None or getattr(block, "n_points", 0) == 0 for block in data.recursive_iterator())
+    else:
+        empty = data.n_points == 0
+    if empty:
+        raise ValueError(f"{path} holds no points (an empty dataset, or a damaged file)")
     return data
 
 
