@@ -41,7 +41,6 @@ from pverosion.filters.base import (
 )
 from pverosion.kernels.mesh.geometry import signed_volume
 from pverosion.kernels.mesh.topology import boundary_edges
-from pverosion.kernels.repair.mesh_repair import outward_parts
 from pverosion.kernels.shards.freeze_thaw import (
     CORE,
     FreezeThawParameters,
@@ -258,6 +257,8 @@ def _closed_outward(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, 
     directed = np.asarray(faces)[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
     consistent = len(np.unique(directed, axis=0)) == len(directed)
     if not consistent or signed_volume(points, faces) <= 0.0:  # inward or mixed winding: each part outward
+        from pverosion.kernels.repair.mesh_repair import outward_parts  # the repair kernels only when needed
+
         faces = outward_parts(points, faces)
     return points, faces
 
