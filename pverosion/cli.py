@@ -280,11 +280,13 @@ def _run_warmup(args: argparse.Namespace) -> None:
 def _run_demo(args: argparse.Namespace) -> None:
     import numpy as np
 
+    from pverosion.io import check_writable
     from pverosion.scenes.weathering import cube_to_sphere
     from pverosion.warmup import warm_up
 
-    warm_up(["weather"])
     out = args.output_dir
+    check_writable(out / "cube_to_sphere.pvd", "-o")  # before the kernels are compiled
+    warm_up(["weather"])
     run = cube_to_sphere(out)
     print("demo: weathering a 10 x 10 per face cube into a sphere (Skorkovská 2019, Figure 6)")
     for step, mesh in zip(run.steps, run.meshes):

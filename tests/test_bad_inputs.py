@@ -125,6 +125,8 @@ CASES = {
     "core window of negative radius": (["freeze-thaw", "sphere.vtp", "-o", "out.vtm", "--core-window", "0,0,0,-1"],
                                        r"--core-window needs a positive radius",
                                        lambda d: pverosion.freeze_thaw(_sphere(), core_window=(0, 0, 0, -1))),
+    "demo into a file": (["demo", "-o", "sphere.vtp"], r"-o sphere.vtp/cube_to_sphere.pvd: sphere.vtp is not a folder",
+                         None),
     "output onto the input": (["curvature", "sphere.vtp", "-o", "sphere.vtp"], r"names the input file", None),
     "output onto input B": (["boolean", "grid.vti", "sphere.vtp", "-o", "./sphere.vtp"], r"names the input B", None),
     "image to a mesh stage": (["weather", "grid.vti", "-o", "out.vtp"], r"holds an image .*not a surface", None),
