@@ -147,15 +147,20 @@ def _run_time_stage(filter_cls: type[ErosionFilter], mesh, options: dict, args: 
 
 def _check_outputs(args: argparse.Namespace) -> None:
     """Refuse bad output paths and series options before any work is done."""
-    from pverosion.io import blocks_folder, check_output_path
+    from pverosion.io import blocks_folder, check_output_path, check_writable
 
     filter_cls = args.filter_cls
     check_output_path(args.output, filter_cls.OUTPUT_TYPE, what="-o")
+    for name, given in _inputs(args).items():
+        if _same_file(args.output, given):
+            raise ValueError(f"-o {args.output} names the input {name} {given}; the input is never overwritten: "
+                             "give the output another name")
     if args.screenshot is not None:
         if args.screenshot.suffix.lower() not in (".png", ".jpg", ".jpeg"):
             raise ValueError(f"--screenshot {args.screenshot}: give a .png or .jpg file")
         if args.screenshot.resolve() == args.output.resolve():
             raise ValueError("--screenshot and -o name the same file")
+        check_writable(args.screenshot, "--screenshot")
     if not filter_cls.TIME_DEPENDENT:
         return
     if args.save_every is not None and args.save_every < 1:
@@ -170,6 +175,24 @@ def _check_outputs(args: argparse.Namespace) -> None:
             raise ValueError(f"--series {series} and -o {args.output} would share the folder {series.with_suffix('')}; "
                              "give the series another name")
         check_output_path(series.with_suffix(".vtp"), "vtkPolyData", what="--series")
+
+
+def _inputs(args: argparse.Namespace) -> dict[str, Path]:
+    """The input files of a stage command by their command-line names (``input``, ``A``, ``B``)."""
+    ports = args.filter_cls.INPUT_PORTS
+    if hasattr(args, "input"):
+        return {"file": args.input}
+    return {_port_label(name): getattr(args, f"input{port}") for port, name in enumerate(ports)}
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether paths ``a`` and ``b`` name one file (the same path, or links to one file)."""
+    if a.resolve() == b.resolve():
+        return True
+    try:
+        return a.exists() and b.exists() and a.samefile(b)
+    except OSError:
+        return False
 
 
 def _series_path(args: argparse.Namespace) -> Path:
@@ -257,11 +280,13 @@ def _run_warmup(args: argparse.Namespace) -> None:
 def _run_demo(args: argparse.Namespace) -> None:
     import numpy as np
 
+    from pverosion.io import check_writable
     from pverosion.scenes.weathering import cube_to_sphere
     from pverosion.warmup import warm_up
 
-    warm_up(["weather"])
     out = args.output_dir
+    check_writable(out / "cube_to_sphere.pvd", "-o")  # before the kernels are compiled
+    warm_up(["weather"])
     run = cube_to_sphere(out)
     print("demo: weathering a 10 x 10 per face cube into a sphere (Skorkovská 2019, Figure 6)")
     for step, mesh in zip(run.steps, run.meshes):

@@ -9,6 +9,7 @@ from pathlib import Path
 from xml.etree import ElementTree
 from xml.sax.saxutils import quoteattr
 
+import numpy as np
 import pyvista as pv
 from vtkmodules.vtkCommonCore import vtkObject
 
@@ -21,6 +22,8 @@ __all__ = [
     "atomic_path",
     "blocks_folder",
     "check_output_path",
+    "check_writable",
+    "read_dataset",
     "read_image",
     "read_mesh",
     "write_atomic",
@@ -69,12 +72,34 @@ def check_output_path(path: str | os.PathLike, data_type: str, *, what: str = "o
         name = data_type[3:]
         article = "an" if name[0] in "AEIOU" else "a"
         raise ValueError(f"{what} {path}: {article} {name} result is written as {', '.join(suffixes)}; got {got}")
-    _check_writable(path, what)
-    return path
+    return check_writable(path, what)
 
 
-def _check_writable(path: Path, what: str) -> None:
-    """``ValueError`` unless ``path`` can be created or replaced (its nearest existing folder is writable)."""
+def check_writable(path: str | os.PathLike, what: str = "output") -> Path:
+    """Check, before any work, that a file can be created or replaced at ``path``.
+
+    The nearest existing folder of ``path`` is tried by creating (and at once
+    removing) a temporary file in it, so read-only file systems, access
+    control lists and folders where files cannot be made are caught too, not
+    only missing permission bits (which do not bind the superuser).
+
+    Parameters
+    ----------
+    path : str or path-like
+    what : str
+        How the path is named in messages (e.g. ``"--screenshot"``).
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    ValueError
+        If ``path`` is a folder, or its nearest existing folder is not a
+        folder or does not take a new file.
+    """
+    path = Path(path)
     if path.is_dir():
         raise ValueError(f"{what} {path}: is a folder; give a file name")
     parent = path.parent
@@ -82,8 +107,99 @@ def _check_writable(path: Path, what: str) -> None:
         parent = parent.parent
     if not parent.is_dir():
         raise ValueError(f"{what} {path}: {parent} is not a folder")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise ValueError(f"{what} {path}: no permission to write in {parent}")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".pverosion-probe.", dir=parent)
+    except OSError as exc:
+        raise ValueError(f"{what} {path}: cannot write in {parent} ({exc.strerror or exc})") from None
+    os.close(fd)
+    os.unlink(probe)
+    return path
+
+
+_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+              "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+              "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
+
+
+def _check_ply(path: Path) -> None:
+    """``ValueError`` if the PLY file ``path`` holds fewer elements than its header announces.
+
+    VTK's PLY reader does not check this: a truncated binary file crashed
+    the process and a truncated text file gave empty faces.
+    """
+    with open(path, "rb") as file:
+        head = file.read(65536)
+    end = head.find(b"end_header")
+    if not head.startswith(b"ply") or end < 0:
+        raise ValueError(f"cannot read {path}: not a PLY file (no 'ply' ... 'end_header' header)")
+    lines = head[:end].decode("ascii", "replace").splitlines()
+    words = [line.split() for line in lines if line.split()]
+    fmt = next((w[1] for w in words if w[0] == "format" and len(w) > 1), "")
+    elements: list[tuple[str, int, list[list[str]]]] = []
+    for w in words:
+        if w[0] == "element" and len(w) == 3 and w[2].isdigit():
+            elements.append((w[1], int(w[2]), []))
+        elif w[0] == "property" and elements:
+            elements[-1][2].append(w[1:])
+    start = head.index(b"\n", end) + 1 if b"\n" in head[end:] else len(head)
+    data = np.memmap(path, dtype=np.uint8, mode="r", offset=start) if path.stat().st_size > start else np.zeros(0, np.uint8)
+    if fmt == "ascii":
+        # lines, blank ones included (never fewer than the records; no copy of the data)
+        have = int(np.count_nonzero(data == ord("\n"))) + int(len(data) > 0 and data[-1] != ord("\n"))
+        need = sum(count for _, count, _ in elements)
+    else:
+        order = ">" if fmt == "binary_big_endian" else "<"
+        need = _ply_binary_size(data, elements, order)
+        have = len(data)
+    if have < need:
+        unit = "lines" if fmt == "ascii" else "bytes"
+        announced = ", ".join(f"{count} {name}" for name, count, _ in elements)
+        raise ValueError(f"cannot read {path}: the file is truncated: its header announces {announced} elements, "
+                         f"more than the {have} {unit} of data after it hold")
+
+
+def _ply_binary_size(data: np.ndarray, elements, order: str) -> int:
+    """Bytes the binary PLY ``elements`` take from the start of ``data``; more than ``len(data)`` if truncated."""
+    offset = 0
+    for _, count, props in elements:
+        layout = [(np.dtype(order + _PLY_TYPES.get(p[1], "u1")), np.dtype(_PLY_TYPES.get(p[2], "i4")).itemsize)
+                  if p[0] == "list" and len(p) >= 3 else (None, np.dtype(_PLY_TYPES.get(p[0], "f8")).itemsize)
+                  for p in props]
+        if all(kind is None for kind, _ in layout):
+            offset += count * sum(size for _, size in layout)
+            continue
+        first = _ply_record(data, offset, layout)
+        if count == 0 or first is None:
+            return offset + (0 if count == 0 else len(data) + 1)
+        size, counts, positions = first
+        if offset + count * size <= len(data) and all(
+                np.all(np.lib.stride_tricks.as_strided(data[offset + at:], (count, kind.itemsize), (size, 1))
+                       .copy().view(kind).ravel() == n) for (kind, _), n, at in zip(
+                    [entry for entry in layout if entry[0] is not None], counts, positions)):
+            offset += count * size  # every record has the first one's list lengths (triangles, say)
+            continue
+        for _ in range(count):  # records of different sizes: one pass over their counts
+            record = _ply_record(data, offset, layout)
+            if record is None:
+                return len(data) + 1
+            offset += record[0]
+    return offset
+
+
+def _ply_record(data: np.ndarray, offset: int, layout) -> tuple[int, list[int], list[int]] | None:
+    """Size, list lengths and list-count positions of the binary PLY record at ``offset``; None if cut off."""
+    at, counts, positions = 0, [], []
+    for kind, size in layout:
+        if kind is None:
+            at += size
+            continue
+        if offset + at + kind.itemsize > len(data):
+            return None
+        n = int(data[offset + at:offset + at + kind.itemsize].view(kind)[0])
+        counts.append(n)
+        positions.append(at)
+        at += kind.itemsize + n * size
+    return (at, counts, positions) if offset + at <= len(data) else None
 
 
 def _read(path: Path) -> pv.DataObject:
@@ -94,16 +210,42 @@ def _read(path: Path) -> pv.DataObject:
     """
     if path.stat().st_size == 0:
         raise ValueError(f"{path} is empty (0 bytes)")
+    if path.suffix.lower() == ".ply":
+        _check_ply(path)
     shown = vtkObject.GetGlobalWarningDisplay()
     vtkObject.GlobalWarningDisplayOff()
     try:
         data = pv.read(path)
     except (ValueError, OSError, RuntimeError, TypeError) as exc:
-        raise ValueError(f"cannot read {path}: {exc}") from None
+        raise ValueError(f"cannot read {path}: {' '.join(str(exc).split())}") from None
     finally:
         vtkObject.SetGlobalWarningDisplay(shown)
     if data is None:
         raise ValueError(f"cannot read {path}: no data in it")
+    return data
+
+
+def read_dataset(path: str | os.PathLike) -> pv.DataObject:
+    """Read any VTK dataset PyVista reads; refuse a file that holds no points.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        If the file is empty, unreadable or damaged (VTK's XML readers then
+        give an empty dataset), or holds no points.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no such file: {path}")
+    data = _read(path)
+    if isinstance(data, pv.MultiBlock):
+        empty = all(block is None or getattr(block, "n_points", 0) == 0 for block in data.recursive_iterator())
+    else:
+        empty = data.n_points == 0
+    if empty:
+        raise ValueError(f"{path} holds no points (an empty dataset, or a damaged file)")
     return data
 
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pyvista as pv
 
-from pverosion.io import atomic_path
+from pverosion.io import atomic_path, check_writable, read_dataset
 from pverosion.plotting import _offscreen_pyvista, scalar_style
 
 __all__ = ["SERIES_SUFFIXES", "Series", "SeriesViewer", "record_movie", "view"]
@@ -112,7 +112,7 @@ class Series:
         if step in self._cache:
             self._cache.move_to_end(step)
             return self._cache[step]
-        data = pv.read(self.files[step])
+        data = read_dataset(self.files[step])
         self._cache[step] = data
         while len(self._cache) > self._size:
             self._cache.popitem(last=False)
@@ -676,6 +676,10 @@ def run_view(args) -> int:
         session.plotter.show()
         session.stop()
         return 0
+    for out, flag in ((args.movie, "--movie"), (args.screenshot, "--screenshot"), (args.paraview_state,
+                                                                                  "--paraview-state")):
+        if out is not None:
+            check_writable(out, flag)  # before anything is read or rendered
     series = Series(args.path)
     exporting = args.movie or args.screenshot or args.paraview_state
     if args.paraview_state:

@@ -9,8 +9,10 @@ absurd-size cases are refused the same way on any machine.
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -25,7 +27,7 @@ import pverosion
 from pverosion.batch import ScenarioError, run_batch
 from pverosion.cli import main
 from pverosion.filters.base import output_times
-from pverosion.io import write_atomic
+from pverosion.io import read_mesh, write_atomic
 from pverosion.kernels.validation import InvalidMeshError
 from pverosion.limits import ResourceLimitError, check_memory, memory_limit
 
@@ -71,6 +73,9 @@ def inputs(tmp_path) -> Path:
     points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1.0]])
     pv.PolyData.from_regular_faces(points, np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])).save(tmp_path / "fan.vtp")
     _grid().save(tmp_path / "grid.vti")
+    flat = _grid()
+    flat.spacing = (2.0, 1.0, 1.0)
+    flat.save(tmp_path / "flat.vti")
     pv.ImageData().save(tmp_path / "empty.vti")
     (tmp_path / "zero.vtp").write_bytes(b"")
     (tmp_path / "garbage.ply").write_bytes(np.random.default_rng(0).bytes(2000))
@@ -79,6 +84,16 @@ def inputs(tmp_path) -> Path:
     ramp["value"] = np.linspace(0.0, 1.0, ramp.n_points)
     ramp.save(tmp_path / "ramp.vti")
     (tmp_path / "garbage.json").write_bytes(np.random.default_rng(1).bytes(300))
+    for name, binary in (("cut.ply", True), ("cut_text.ply", False)):  # a PLY file cut off in its data
+        _sphere().save(tmp_path / name, binary=binary)
+        data = (tmp_path / name).read_bytes()
+        (tmp_path / name).write_bytes(data[:len(data) * 3 // 10])
+    faces = _sphere().regular_faces
+    degenerate = faces.copy()
+    degenerate[:4, 2] = degenerate[:4, 1]
+    pv.PolyData.from_regular_faces(_sphere().points, degenerate).save(tmp_path / "degenerate.vtp")
+    pv.PolyData.from_regular_faces(_sphere().points, np.vstack([faces, faces[:3, ::-1]])).save(
+        tmp_path / "duplicate.vtp")
     (tmp_path / "other.json").write_text('{"format": "something else"}')
     return tmp_path
 
@@ -88,6 +103,32 @@ CASES = {
     "missing file": (["weather", "missing.vtp", "-o", "out.vtp"], r"no such file", None),
     "empty file": (["weather", "zero.vtp", "-o", "out.vtp"], r"zero.vtp is empty", None),
     "garbage file": (["curvature", "garbage.ply", "-o", "out.vtp"], r"garbage.ply", None),
+    "truncated binary PLY": (["curvature", "cut.ply", "-o", "out.vtp"], r"cut.ply: the file is truncated",
+                             lambda d: read_mesh(d / "cut.ply")),
+    "truncated text PLY": (["weather", "cut_text.ply", "-o", "out.vtp"], r"cut_text.ply: the file is truncated",
+                           lambda d: read_mesh(d / "cut_text.ply")),
+    "degenerate faces, weather": (["weather", "degenerate.vtp", "-o", "out.vtp"],
+                                  r"4 degenerate faces that use a vertex twice",
+                                  lambda d: pverosion.weather(pv.read(d / "degenerate.vtp"))),
+    "duplicate faces, repair": (["repair", "duplicate.vtp", "-o", "out.vtp"],
+                                r"3 faces that repeat the vertices of another face",
+                                lambda d: pverosion.repair(pv.read(d / "duplicate.vtp"))),
+    "open mesh, shards": (["shard-graph", "open.vtp", "-o", "out.vtm", "--cells", "5"],
+                          r"must be closed: it has \d+ boundary edges",
+                          lambda d: pverosion.shard_graph(pv.read(d / "open.vtp"), cells=5)),
+    "voxels that are not cubes": (["voxel", "flat.vti", "-o", "out.vtm"],
+                                  r"needs cubic voxels; the grid's spacing is \(2\.0, 1\.0, 1\.0\)$",
+                                  lambda d: pverosion.voxel_erosion(pv.read(d / "flat.vti"))),
+    "zero slab thickness": (["shard-graph", "sphere.vtp", "-o", "out.vtm", "--pattern", "slabs", "--layers", "1,0"],
+                            r"--layers must be positive thicknesses",
+                            lambda d: pverosion.shard_graph(_sphere(), pattern="slabs", layers=(1.0, 0.0))),
+    "core window of negative radius": (["freeze-thaw", "sphere.vtp", "-o", "out.vtm", "--core-window", "0,0,0,-1"],
+                                       r"--core-window needs a positive radius",
+                                       lambda d: pverosion.freeze_thaw(_sphere(), core_window=(0, 0, 0, -1))),
+    "demo into a file": (["demo", "-o", "sphere.vtp"], r"-o sphere.vtp/cube_to_sphere.pvd: sphere.vtp is not a folder",
+                         None),
+    "output onto the input": (["curvature", "sphere.vtp", "-o", "sphere.vtp"], r"names the input file", None),
+    "output onto input B": (["boolean", "grid.vti", "sphere.vtp", "-o", "./sphere.vtp"], r"names the input B", None),
     "image to a mesh stage": (["weather", "grid.vti", "-o", "out.vtp"], r"holds an image .*not a surface", None),
     "mesh to a volume stage": (["voxel", "sphere.vtp", "-o", "out.vtm"], r"not an image|needs an ImageData",
                                lambda d: pverosion.voxel_erosion(pv.read(d / "sphere.vtp"))),
@@ -425,6 +466,31 @@ def test_a_folder_holds_one_scenario(tmp_path):
     # the same scenario, re-laid out with a comment, resumes
     _scenario(tmp_path, "# again\n" + first.read_text(), "a.toml")
     assert run_batch(first, tmp_path / "out", serial=True, progress=False).skipped == 1
+
+
+@pytest.mark.parametrize("options", [["-o", "locked/out.vtp"], ["-o", "out.vtp", "--screenshot", "locked/shot.png"]],
+                         ids=["output", "screenshot"])
+def test_a_folder_that_takes_no_new_file_is_refused_before_the_run(options, inputs, monkeypatch, capsys):
+    """A folder where no file can be made (read-only file system; permission bits do not bind root) is found
+    by trying, before any work: nothing is written, not even the output when only the screenshot is refused."""
+    import tempfile
+
+    (inputs / "locked").mkdir()
+    real = tempfile.mkstemp
+
+    def mkstemp(*args, dir=None, **kwargs):
+        if dir is not None and Path(dir).resolve() == (inputs / "locked").resolve():
+            raise OSError(errno.EROFS, "Read-only file system")
+        return real(*args, dir=dir, **kwargs)
+
+    monkeypatch.setattr(tempfile, "mkstemp", mkstemp)
+    before = _files(inputs)
+    monkeypatch.chdir(inputs)
+    status = main(["curvature", "sphere.vtp", *options])
+    err = capsys.readouterr().err
+    assert status == 2, err
+    assert re.search(r"error: --?\w+ locked/\w+\.\w+: cannot write in locked \(Read-only file system\)", err), err
+    assert _files(inputs) == before
 
 
 def test_cli_messages_use_cli_syntax():

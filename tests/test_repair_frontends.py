@@ -305,3 +305,26 @@ def test_paraview_proxies_have_two_ports_and_the_operation(plugin, sphere_a, sph
     out = pv.wrap(alg.GetOutputDataObject(0))
     assert out.n_open_edges == 0
     assert _signed_volume(out) == pytest.approx(_manifold_volume(sphere_a, sphere_b, "difference"), rel=1e-3)
+
+
+@pytest.mark.parametrize("shift", [10.0, 1e6])
+def test_an_operand_far_away_does_not_change_the_other(shift):
+    """The nearly-degenerate pre-pass of a Boolean is relative to each operand's own size: a small sphere's
+    faces all stay whether the other operand lies beside it or a million units away."""
+    small = pv.Icosphere(radius=1e-3, nsub=2)
+    points = np.asarray(small.points, np.float64)
+    far = pv.PolyData.from_regular_faces(points + [shift, 0.0, 0.0], small.regular_faces)
+    union = pverosion.boolean(pv.PolyData.from_regular_faces(points, small.regular_faces), far)
+    assert union.n_cells == 2 * small.n_cells
+    near = union.extract_cells(np.flatnonzero(union.cell_data["source_mesh"] == 0))
+    np.testing.assert_array_equal(np.sort(near.points, axis=0), np.sort(points, axis=0))
+
+
+def test_repair_keeps_a_small_part_far_from_the_rest():
+    """A shell is judged empty against its own size: a small closed part a million units from a large one stays."""
+    small, large = pv.Icosphere(radius=1e-3, nsub=2), pv.Icosphere(radius=1.0, nsub=2)
+    points = np.vstack([np.asarray(large.points, np.float64), np.asarray(small.points, np.float64) + [1e6, 0.0, 0.0]])
+    faces = np.vstack([large.regular_faces, small.regular_faces + large.n_points])
+    out = pverosion.repair(pv.PolyData.from_regular_faces(points, faces))
+    assert out.n_cells == len(faces)
+    assert out.volume == pytest.approx(large.volume + small.volume, rel=1e-9)

@@ -32,6 +32,25 @@ def test_shard_graph_rebuilds_a_torus_from_closed_shards():
     assert torus.n_points == pv.ParametricTorus(ringradius=1.0, crosssectionradius=0.4).triangulate().clean().n_points
 
 
+@pytest.mark.parametrize("winding", ["inward", "mixed"])
+def test_shards_do_not_depend_on_the_winding(winding):
+    """A closed mesh with inward or mixed winding is fractured as the same mesh turned outward."""
+    torus = pv.ParametricTorus(ringradius=1.0, crosssectionradius=0.4).triangulate().clean()
+    faces = torus.regular_faces
+    turned = faces[:, ::-1].copy() if winding == "inward" else faces.copy()
+    if winding == "mixed":
+        turned[::3] = turned[::3, ::-1]
+    other = pv.PolyData.from_regular_faces(torus.points, turned)
+    before = other.copy(deep=True)
+    reference, out = pverosion.shard_graph(torus, cells=40, seed=1), pverosion.shard_graph(other, cells=40, seed=1)
+    assert out["surface"].volume == pytest.approx(torus.volume, rel=1e-6)
+    for block in ("surface", "shards", "links"):
+        assert out[block].n_cells == reference[block].n_cells
+        np.testing.assert_allclose(np.sort(out[block].points, axis=0), np.sort(reference[block].points, axis=0),
+                                   rtol=0, atol=1e-12)
+    assert np.array_equal(other.faces, before.faces)  # the input keeps its winding
+
+
 @pytest.mark.parametrize("pattern", PATTERNS)
 def test_every_seed_pattern_fills_the_cone(cone, pattern):
     from pverosion.filters.base import polydata_triangles

@@ -258,6 +258,28 @@ def _cli(*args, cwd=None):
                           text=True, env=env, cwd=cwd, timeout=600)
 
 
+@pytest.mark.parametrize("damage", ["truncated", "empty"])
+def test_cli_refuses_to_picture_a_damaged_or_empty_file(tmp_path, damage):
+    """A cut .vtp reads as an empty dataset with only VTK's printout: the view says so and writes no picture."""
+    path = tmp_path / "step.vtp"
+    if damage == "truncated":
+        pv.Sphere().save(path)
+        path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    else:
+        pv.PolyData().save(path)
+    done = _cli(path, "--screenshot", tmp_path / "shot.png")
+    assert done.returncode == 2, done.stderr
+    assert "step.vtp holds no points" in done.stderr.strip().splitlines()[-1]
+    assert not (tmp_path / "shot.png").exists()
+
+
+def test_cli_checks_the_picture_path_before_reading(tmp_path):
+    (tmp_path / "file").write_text("not a folder")
+    done = _cli(tmp_path / "missing.vtp", "--screenshot", tmp_path / "file" / "shot.png")
+    assert done.returncode == 2, done.stderr
+    assert "--screenshot" in done.stderr and "is not a folder" in done.stderr
+
+
 def test_cli_screenshot_and_paraview_script(series_path, tmp_path):
     done = _cli(series_path, "--screenshot", tmp_path / "last.png", "--paraview-state", tmp_path / "open.py",
                 "--window-size", 320, 240)

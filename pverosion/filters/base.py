@@ -158,7 +158,7 @@ class Param:
         if value is None and (self.numbers is not None or self.convert is not None):
             return ""
         if self.numbers is not None and not isinstance(value, str):
-            return self._vector_text(value)
+            value = self._vector_text(value)  # checked as its text below
         if self.convert is not None and not isinstance(value, str):
             try:
                 return self.convert(value)
@@ -682,6 +682,36 @@ def polydata_triangles(mesh: vtkPolyData, *, check_points: bool = True) -> tuple
     if check_points and not np.isfinite(points).all():
         as_points(points)  # raises InvalidMeshError naming the vertices
     return points, faces
+
+
+def check_proper_faces(faces: np.ndarray) -> None:
+    """``InvalidMeshError`` if a triangle uses a vertex twice or repeats another triangle's vertices.
+
+    Stages that need a 2-manifold (or closed) surface call it first, so that
+    such faces are named as what they are rather than reported as the
+    boundary or non-manifold edges they make.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3)
+        Triangles as vertex indices.
+
+    Raises
+    ------
+    InvalidMeshError
+        Naming how many faces are degenerate or duplicated, and the first ones.
+    """
+    faces = np.asarray(faces)
+    repeated = np.flatnonzero((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2])
+                              | (faces[:, 2] == faces[:, 0]))
+    if len(repeated):
+        raise InvalidMeshError(f"mesh has {len(repeated)} degenerate faces that use a vertex twice (first faces: "
+                               f"{repeated[:5].tolist()}): remove them first (mesh.clean() drops them)")
+    _, first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)
+    if len(first) < len(faces):
+        copies = np.setdiff1d(np.arange(len(faces)), first)
+        raise InvalidMeshError(f"mesh has {len(copies)} faces that repeat the vertices of another face (first "
+                               f"copies: {copies[:5].tolist()}): remove the duplicates first")
 
 
 def polydata_triangle_mesh(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:

@@ -13,6 +13,7 @@ from vtkmodules.vtkCommonCore import vtkPoints
 
 from pverosion.filters.base import (
     TimeSteppedFilter,
+    check_proper_faces,
     polydata_triangles,
     replace_triangles,
     set_field_value,
@@ -86,6 +87,7 @@ class MeshSolverFilter(TimeSteppedFilter):
         curvature and the self-intersection guard are undefined elsewhere.
         """
         points, faces = polydata_triangles(inp)
+        check_proper_faces(faces)
         topology = edge_topology(np.asarray(faces, np.int64), len(points))
         if topology.n_nonmanifold_edges:
             raise InvalidMeshError(f"mesh has {topology.n_nonmanifold_edges} non-manifold edges (shared by more than "

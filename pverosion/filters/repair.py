@@ -27,7 +27,7 @@ from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonCore import vtkPoints, vtkStringArray
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 
-from pverosion.filters.base import ErosionFilter, Param, polydata_triangles, replace_triangles
+from pverosion.filters.base import ErosionFilter, Param, check_proper_faces, polydata_triangles, replace_triangles
 from pverosion.kernels.exact.intersection_curves import CASES
 from pverosion.kernels.mesh.topology import boundary_edges
 from pverosion.kernels.repair.mesh_repair import (
@@ -62,6 +62,7 @@ def _closed_operand(mesh, orientation: str, what: str) -> tuple[np.ndarray, np.n
     """Points and outward triangles of one input; ``InvalidMeshError`` naming ``what`` otherwise."""
     try:
         points, faces = as_triangle_mesh(*polydata_triangles(mesh))
+        check_proper_faces(faces)
     except InvalidMeshError as exc:
         raise InvalidMeshError(f"{what}: {exc}") from None
     if len(boundary_edges(faces, len(points))):

@@ -33,12 +33,14 @@ from pverosion.filters.base import (
     ErosionFilter,
     Param,
     TimeSteppedFilter,
+    check_proper_faces,
     parse_numbers,
     polydata_triangles,
     set_field_value,
     set_multiblock,
 )
 from pverosion.kernels.mesh.geometry import signed_volume
+from pverosion.kernels.mesh.topology import boundary_edges
 from pverosion.kernels.shards.freeze_thaw import (
     CORE,
     FreezeThawParameters,
@@ -58,6 +60,7 @@ from pverosion.kernels.shards.seed_patterns import (
     slab_seeds,
     uniform_seeds,
 )
+from pverosion.kernels.validation import InvalidMeshError
 from pverosion.limits import check_memory, check_work
 
 __all__ = ["CORE_CHOICES", "PATTERNS", "FreezeThaw", "ShardGraph", "pattern_seeds", "shard_blocks"]
@@ -68,6 +71,19 @@ CORE_CHOICES = ("none", "surface")
 BYTES_PER_SHARD = 16384
 """Upper estimate of the memory of one shard (its clipped Voronoi cell, links and output surface)."""
 
+
+def _positive_layers(text: str) -> None:
+    """``ValueError`` unless every thickness of ``layers`` is positive."""
+    if any(value <= 0.0 for value in parse_numbers(text, "layers")):
+        raise ValueError(f"layers must be positive thicknesses; got {text!r}")
+
+
+def _positive_radius(text: str) -> None:
+    """``ValueError`` unless the sphere ``core_window`` x,y,z,r has a positive radius."""
+    if parse_numbers(text, "core_window", count=4)[3] <= 0.0:
+        raise ValueError(f"core_window needs a positive radius r in x,y,z,r; got {text!r}")
+
+
 _GENERATION_PARAMS = (
     Param("cells", 1000, "About how many shards (seed points) to make.", minimum=1),
     Param("pattern", "uniform", "Seed pattern: uniform random, jittered cubic grid, jittered hexagonal columns "
@@ -75,7 +91,7 @@ _GENERATION_PARAMS = (
     Param("jitter", 0.2, "Jitter of the grid, hex and slab patterns, as a fraction of the spacing.", minimum=0.0,
           maximum=0.49, advanced=True),
     Param("layers", "", "Slab thicknesses from the bottom up, as t1,t2,... (cycled; default: the spacing); hex: "
-          "the height of the column pieces (default: whole columns).", numbers=0),
+          "the height of the column pieces (default: whole columns).", numbers=0, parse=_positive_layers),
     Param("tilt", 0.0, "Tilt of the slab pattern about x.", minimum=-90.0, maximum=90.0, units="degrees",
           advanced=True),
     Param("radius_gradient", "0,0,0", "Poisson disc: change of the radius per unit length, as x,y,z.", numbers=3,
@@ -225,6 +241,28 @@ def _path_lines(graph: Graph, record: PathRecord) -> pv.PolyData:
     return out.clean(point_merging=False)
 
 
+def _closed_outward(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points (V, 3) and triangles (F, 3) of a closed mesh, turned outward if its winding is not.
+
+    Raises
+    ------
+    InvalidMeshError
+        Degenerate or duplicated faces, or boundary edges (an open mesh).
+    """
+    check_proper_faces(faces)
+    n_open = len(boundary_edges(np.asarray(faces, np.int64), len(points)))
+    if n_open:
+        raise InvalidMeshError(f"the mesh must be closed: it has {n_open} boundary edges (fill its holes first, "
+                               "e.g. with pverosion.meshing.fill_holes)")
+    directed = np.asarray(faces)[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    consistent = len(np.unique(directed, axis=0)) == len(directed)
+    if not consistent or signed_volume(points, faces) <= 0.0:  # inward or mixed winding: each part outward
+        from pverosion.kernels.repair.mesh_repair import outward_parts  # the repair kernels only when needed
+
+        faces = outward_parts(points, faces)
+    return points, faces
+
+
 class _ShardSource:
     """Generation shared by both filters: seeds from the options, the graph cached per input and options."""
 
@@ -234,7 +272,7 @@ class _ShardSource:
     def _graph(self, inp) -> Graph:
         key = (inp.GetMTime(), self._generation_options())
         if getattr(self, "_graph_key", None) != key:
-            points, faces = polydata_triangles(inp)
+            points, faces = _closed_outward(*polydata_triangles(inp))
             cells = self.get_option("cells")
             check_memory(cells * BYTES_PER_SHARD, option="cells", what=f"a graph of {cells} shards")
             seeds = pattern_seeds(
@@ -301,7 +339,8 @@ class FreezeThaw(_ShardSource, TimeSteppedFilter):
         Param("core", "none", "Cells never removed: none, or surface (the cells on the mesh surface).",
               choices=CORE_CHOICES),
         Param("core_plane", "", "Also make core the cells whose seed x has n . x >= d, as nx,ny,nz,d.", numbers=4),
-        Param("core_window", "", "Sphere x,y,z,r whose cells are not core (an opening for the erosion).", numbers=4),
+        Param("core_window", "", "Sphere x,y,z,r whose cells are not core (an opening for the erosion).", numbers=4,
+              parse=_positive_radius),
         Param("water_direction", "0,0,-1", "Mean direction the water travels in, as x,y,z.", numbers=3),
         Param("spread", 0.0, "Half-angle of the cone of water directions.", minimum=0.0, maximum=180.0,
               units="degrees", advanced=True),

@@ -207,7 +207,8 @@ def voxel_grid_from_volume(volume, *, threshold: float, array: str | None = None
     values = np.asarray(image[array] if array else image.active_scalars, dtype=np.float64)
     sx, sy, sz = image.spacing
     if not (np.isclose(sx, sy) and np.isclose(sx, sz)):
-        raise ValueError(f"voxel erosion needs cubic voxels; the volume's spacing is {image.spacing}")
+        spacing = tuple(float(s) for s in image.spacing)
+        raise ValueError(f"voxel erosion needs cubic voxels; the volume's spacing is {spacing}")
     amount = (values >= threshold).astype(np.float64).reshape(image.dimensions, order="F")
     return voxel_grid(amount, origin=image.origin, spacing=sx, material_field=material_field)
 
@@ -290,7 +291,7 @@ def voxel_solver(grid, *, params: ErosionParameters | None = None, source_veloci
     """
     spacing = np.array(grid.GetSpacing())
     if not (np.isclose(spacing[0], spacing[1]) and np.isclose(spacing[0], spacing[2])):
-        raise ValueError(f"voxel erosion needs cubic voxels; the grid's spacing is {tuple(spacing)}")
+        raise ValueError(f"voxel erosion needs cubic voxels; the grid's spacing is {tuple(spacing.tolist())}")
     velocity = np.asarray(source_velocity, dtype=np.float64).ravel()
     if velocity.shape != (3,):
         raise ValueError(f"source_velocity needs three numbers x,y,z; got {velocity.size}")

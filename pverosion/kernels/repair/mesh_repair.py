@@ -82,8 +82,8 @@ OPERATIONS = ("union", "intersection", "difference", "reverse_difference")
 
 
 THIN_SHELL = 1e-9
-"""A shell (edge-connected part) of the result whose |volume| is at most this times its area times the bounding-box
-diagonal encloses nothing: it is dropped, and :func:`mesh_problems` reports one."""
+"""A shell (edge-connected part) of the result whose |volume| is at most this times its area times its own
+bounding-box diagonal encloses nothing: it is dropped, and :func:`mesh_problems` reports one."""
 
 IMPROVE_EDGE_RATIO = 0.25
 """Mesh improvement after a repair: edges shorter than this times the input's average edge length collapse."""
@@ -744,33 +744,42 @@ def _split_touching(points, faces, twins):
 
 
 def _shells(points, faces):
-    """Shell (edge-connected part) of every face (F,), and the signed volume and area of every shell."""
+    """Shell (edge-connected part) of every face (F,), and the signed volume, area and bounding-box diagonal of
+    every shell."""
     shell = _patches(faces, len(points), np.zeros(0, np.int64), False)
-    volume, area = _shell_sizes(points, faces, shell)
-    return shell, volume, area
+    volume, area, diagonal = _shell_sizes(points, faces, shell)
+    return shell, volume, area, diagonal
 
 
 @njit(cache=True)
 def _shell_sizes(points, faces, shell):
-    """Signed volume and area of every shell (labels ``shell`` (F,), 0..S-1): sums over the faces in order of the
-    volumes of the tetrahedra from the points' lowest corner and of the faces' areas."""
+    """Signed volume, area and bounding-box diagonal of every shell (labels ``shell`` (F,), 0..S-1): sums over the
+    faces in order of the volumes of the tetrahedra from the shell's own lowest corner (so a shell far from the
+    others keeps the rounding of its own size) and of the faces' areas."""
     n = np.int64(0)
     for f in range(shell.shape[0]):  # shell.max() + 1, whose compilation costs more
         n = max(n, shell[f] + 1)
-    origin = np.full(3, np.inf)
-    for v in range(points.shape[0]):
-        for a in range(3):
-            origin[a] = min(origin[a], points[v, a])
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    for f in range(faces.shape[0]):
+        for c in range(3):
+            for a in range(3):
+                lo[shell[f], a] = min(lo[shell[f], a], points[faces[f, c], a])
+                hi[shell[f], a] = max(hi[shell[f], a], points[faces[f, c], a])
     volume = np.zeros(n)
     area = np.zeros(n)
+    diagonal = np.zeros(n)
+    for s in range(n):
+        diagonal[s] = np.sqrt((hi[s, 0] - lo[s, 0]) ** 2 + (hi[s, 1] - lo[s, 1]) ** 2 + (hi[s, 2] - lo[s, 2]) ** 2)
     for f in range(faces.shape[0]):
         p0, p1, p2 = points[faces[f, 0]], points[faces[f, 1]], points[faces[f, 2]]
         ux, uy, uz = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
         wx, wy, wz = p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]
         cx, cy, cz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
-        volume[shell[f]] += ((p0[0] - origin[0]) * cx + (p0[1] - origin[1]) * cy + (p0[2] - origin[2]) * cz) / 6.0
+        o = lo[shell[f]]
+        volume[shell[f]] += ((p0[0] - o[0]) * cx + (p0[1] - o[1]) * cy + (p0[2] - o[2]) * cz) / 6.0
         area[shell[f]] += 0.5 * np.sqrt(cx * cx + cy * cy + cz * cz)
-    return volume, area
+    return volume, area, diagonal
 
 
 def mesh_problems(points, faces, *, query=None) -> list[str]:
@@ -778,8 +787,8 @@ def mesh_problems(points, faces, *, query=None) -> list[str]:
 
     Checked: every edge in exactly two faces, running opposite ways in them;
     the faces around every vertex form one fan; no shell (edge-connected
-    part) whose volume is below :data:`THIN_SHELL` times its area times the
-    bounding-box diagonal; the winding number just in front of every shell
+    part) whose volume is below :data:`THIN_SHELL` times its area times its
+    own bounding-box diagonal; the winding number just in front of every shell
     is 0 (no part inside out or inside another); and, by the exact
     predicates of :func:`~pverosion.kernels.exact.intersection_curves.intersection_curves`,
     no two faces cross or overlap in a common plane (faces at coincident
@@ -827,8 +836,8 @@ def _problems(pts, fcs, query, shells, twins=None, one_fan=False) -> list[str]:
         problems.append(f"{n_split - n} vertices join separate fans of faces")
     if len(fcs) == 0:
         return problems
-    shell, volume, area = _shells(pts, fcs) if shells is None else shells
-    thin = np.abs(volume) <= THIN_SHELL * _diagonal(pts) * area
+    shell, volume, area, diagonal = _shells(pts, fcs) if shells is None else shells
+    thin = np.abs(volume) <= THIN_SHELL * diagonal * area
     if thin.any():
         problems.append(f"{np.count_nonzero(thin)} shells enclose no volume (|volume| <= {THIN_SHELL:g} x area x "
                         "diagonal)")
@@ -913,8 +922,8 @@ def _finalized(result: RepairResult) -> RepairResult:
                          on_curve=result.on_curve[origin])
     shells = None
     if len(faces):
-        shells = shell, volume, area = _shells(points, faces)
-        keep = (np.abs(volume) > THIN_SHELL * _diagonal(points) * area)[shell]
+        shells = shell, volume, area, diagonal = _shells(points, faces)
+        keep = (np.abs(volume) > THIN_SHELL * diagonal * area)[shell]
         if not keep.all():
             shells = twins = None
             used = _used_vertices(faces[keep], len(points))
@@ -1158,8 +1167,8 @@ def boolean_meshes(points_a, faces_a, points_b, faces_b, operation: str, *, tole
     operation : {"union", "intersection", "difference", "reverse_difference"}
         A ∪ B, A ∩ B, A ∖ B or B ∖ A.
     tolerance : float, default: :data:`REPAIR_TOLERANCE`
-        Pre-pass on each operand (relative to the bounding-box diagonal of
-        both), see :func:`repair_intersections`.
+        Pre-pass on each operand (relative to that operand's bounding-box
+        diagonal), see :func:`repair_intersections`.
     improve : bool, default: False
         Mesh improvement afterwards, see :func:`repair_intersections`.
 
@@ -1184,8 +1193,9 @@ def boolean_meshes(points_a, faces_a, points_b, faces_b, operation: str, *, tole
     pb, fb = as_triangle_mesh(points_b, faces_b)
     _check_closed(fa, len(pa), "mesh A")
     _check_closed(fb, len(pb), "mesh B")
-    tol = _tolerance(np.concatenate([pa, pb]), tolerance)
-    ca, cb = _without_degenerate(pa, fa, tol), _without_degenerate(pb, fb, tol)
+    # each operand's own size: where the other one lies does not change which of its faces are degenerate
+    ca = _without_degenerate(pa, fa, _tolerance(pa, tolerance))
+    cb = _without_degenerate(pb, fb, _tolerance(pb, tolerance))
     pts = np.concatenate([ca[0], cb[0]])
     fcs = np.concatenate([ca[1], cb[1] + len(ca[0])])
     group = np.repeat([0, 1], [len(ca[1]), len(cb[1])])
