@@ -144,6 +144,20 @@ def test_cli_reports_a_malformed_scenario(tmp_path, capsys):
     assert "unknown stage 'wether'" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("where", ["file", "under_a_file"])
+def test_an_output_folder_that_cannot_be_made_is_refused_before_any_job(tmp_path, capsys, where):
+    good = _write(tmp_path, '[input]\nexample = "rock"\n[[stages]]\nstage = "curvature"\n', "good.toml")
+    blocker = tmp_path / "taken"
+    blocker.write_text("keep me")
+    out = blocker if where == "file" else blocker / "out"
+    with pytest.raises(ValueError, match=r"batch output folder .*taken"):
+        run_batch(good, out, serial=True, progress=False)
+    assert main(["batch", str(good), "--out", str(out), "--serial"]) == 2
+    err = capsys.readouterr().err
+    assert "batch output folder" in err and "Errno" not in err
+    assert blocker.read_text() == "keep me"
+
+
 @pytest.mark.filterwarnings("ignore:The VTK reader")
 def test_cli_exit_status_tells_whether_every_job_succeeded(tmp_path, capsys):
     pv.Sphere().save(tmp_path / "ball.vtp")

@@ -115,6 +115,8 @@ def run_batch(
     ------
     ScenarioError
         If the scenario is invalid (before any job starts).
+    ValueError
+        If ``out`` is a file, or a folder that cannot be made (before any job starts).
     RuntimeError
         If another batch is running into ``out``, or the workers cannot see ``out``.
     """
@@ -264,7 +266,12 @@ def _prepare(root: Path, scenario: Scenario) -> None:
 @contextmanager
 def _exclusive(root: Path):
     """Hold an exclusive lock on ``root/.batch.lock`` (released when the process ends, however it ends)."""
-    root.mkdir(parents=True, exist_ok=True)
+    if root.exists() and not root.is_dir():
+        raise ValueError(f"batch output folder {root}: is a file; give a folder")
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"batch output folder {root}: cannot be made ({exc.strerror or exc})") from None
     try:
         import fcntl
     except ImportError:  # not on POSIX: no lock
