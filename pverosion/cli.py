@@ -14,7 +14,7 @@ import re
 import sys
 import time
 import warnings
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -336,6 +336,21 @@ def main(argv: list[str] | None = None) -> int:
         return _main(argv, command, typed)
 
 
+def warning_printer(where: str) -> Callable[..., None]:
+    """A ``warnings.showwarning`` that prints ``<where>: warning: <message>`` on stderr, on a line of its own
+    when a progress bar is showing (through tqdm, once a stage has imported it)."""
+
+    def show(message, category, *_args, **_kwargs) -> None:
+        line = f"{where}: warning: {message}"
+        bars = sys.modules.get("tqdm")
+        if bars is None:
+            print(line, file=sys.stderr)
+        else:
+            bars.tqdm.write(line, file=sys.stderr)  # clears the bars, prints the line, draws them again
+
+    return show
+
+
 def _main(argv: list[str], command: str | None, typed: str | None) -> int:
     """:func:`main` after the command is known."""
     parser = build_parser(stages={command})  # only the chosen stage's filter module is imported
@@ -344,9 +359,7 @@ def _main(argv: list[str], command: str | None, typed: str | None) -> int:
 
     where = f"pverosion {typed if typed in DEPRECATED_COMMANDS else args.command}"  # the name as typed
 
-    def show(message, category, *_args, **_kwargs):
-        print(f"{where}: warning: {message}", file=sys.stderr)
-
+    show = warning_printer(where)
     try:
         # a stage takes Ctrl-C at its next step boundary; batch and demo are interrupted as usual
         deferred = deferred_interrupt() if hasattr(args, "filter_cls") else contextlib.nullcontext()

@@ -76,3 +76,22 @@ def test_cli_weather_series_and_errors(tmp_path, capsys):
     assert main([*args, "--series", str(tmp_path / "x.pvd")]) == 2
     assert "--series needs --save-every" in capsys.readouterr().err
     assert main([*args, "--save-every", "0"]) == 2
+
+
+def test_cli_warning_gets_a_line_of_its_own_under_a_progress_bar(capsys):
+    import re
+    import warnings
+
+    from tqdm import tqdm
+
+    from pverosion.cli import warning_printer
+
+    with warnings.catch_warnings(), tqdm(total=10, desc="steps", file=sys.stderr, mininterval=0) as bar:
+        warnings.showwarning = warning_printer("pverosion weather")
+        bar.update(3)
+        warnings.warn("no water flows", UserWarning, stacklevel=1)
+        bar.update(3)
+    err = capsys.readouterr().err
+    # the bar's text is cleared (carriage return) before the warning, which ends its own line
+    assert re.search(r"\rpverosion weather: warning: no water flows\n", err), err
+    assert "3/10" in err and "6/10" in err
