@@ -1,3 +1,5 @@
+import warnings
+
 import numpy as np
 import pytest
 import pyvista as pv
@@ -5,6 +7,7 @@ import pyvista as pv
 import pverosion
 from pverosion.cli import main
 from pverosion.filters import MaterialSampler, MaterialsFromVolume
+from pverosion.kernels.materials.bsp import BSPTree
 from pverosion.kernels.materials.field import BSPMaterials
 from pverosion.kernels.materials.surfaces import Sphere
 from pverosion.kernels.weathering.model import WeatheringSolver
@@ -43,6 +46,23 @@ def test_fitted_tree_file_is_compact_and_resamples_alike(tmp_path):
     assert path.stat().st_size < out.field_data["bsp_bytes"][0] < out.field_data["volume_bytes"][0]
     resampled = pverosion.sample_materials(str(path), dimensions=(20, 20, 20), bounds=image.bounds)
     assert np.array_equal(resampled["material_id"], out["material_id"])
+
+
+@pytest.mark.parametrize("method", ["complete", "fitted"])
+def test_tree_file_keeps_its_volume_and_a_grid_outside_it_is_refused(tmp_path, method):
+    image = _ball_image()
+    path = tmp_path / f"{method}.json"
+    MaterialsFromVolume(thresholds="0.2, 0.6", method=method, tree_file=str(path)).run(image)
+    assert BSPTree.from_json(path).domain == tuple(image.bounds)
+    far = [b + 10.0 for b in image.bounds]  # the same grid, 10 units away along every axis
+    with pytest.raises(ValueError, match="wholly outside the volume the tree"):
+        pverosion.sample_materials(str(path), dimensions=(5, 5, 5), bounds=far)
+    half = [b + (1.0 if i < 2 else 0.0) for i, b in enumerate(image.bounds)]  # half of it beyond x = 1
+    with pytest.warns(UserWarning, match="part of the grid lies outside"):
+        pverosion.sample_materials(str(path), dimensions=(5, 5, 5), bounds=half)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the volume itself: no warning
+        pverosion.sample_materials(str(path), dimensions=(5, 5, 5), bounds=image.bounds)
 
 
 def test_sampler_points_and_cells_and_accessor():

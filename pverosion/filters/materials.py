@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from vtkmodules.util import numpy_support
 
@@ -131,7 +133,7 @@ class MaterialsFromVolume(ErosionFilter):
                             ("agreement", float(np.mean(material == reference)))):
             set_field_value(out, name, value)
         if self.get_option("tree_file"):
-            field.tree.to_json(self.get_option("tree_file"))
+            field.tree.to_json(self.get_option("tree_file"), domain=inp.GetBounds())
         self.field = field
 
 
@@ -179,5 +181,24 @@ class MaterialSampler(ErosionFilter):
         if inp.GetNumberOfPoints() == 0:
             raise ValueError("the grid is empty: it has no points to sample at")
         field = self._current_field()
+        domain = getattr(getattr(field, "tree", None), "domain", None)
+        if domain is not None:
+            _check_overlap(inp.GetBounds(), domain, self.get_option("tree_file"))
         out.ShallowCopy(inp)
         store_sample(field, inp, out, self.get_option("association"))
+
+
+def _check_overlap(bounds, domain, path: str) -> None:
+    """``ValueError`` if the grid ``bounds`` lie wholly outside the ``domain`` the tree file ``path`` was built for;
+    a warning if partly outside (the tree's planes go on beyond its volume, where they mean nothing)."""
+    lo, hi = np.asarray(bounds[::2]), np.asarray(bounds[1::2])
+    dlo, dhi = np.asarray(domain[::2]), np.asarray(domain[1::2])
+    slack = 1e-9 * max(float(np.max(dhi - dlo)), float(np.max(np.abs(domain))), 1e-300)
+    shown = ", ".join(f"{a:g}..{b:g}" for a, b in zip(domain[::2], domain[1::2]))
+    if np.any(lo > dhi + slack) or np.any(hi < dlo - slack):
+        raise ValueError(f"the grid (x, y, z: {', '.join(f'{a:g}..{b:g}' for a, b in zip(lo, hi))}) lies wholly "
+                         f"outside the volume the tree {path} was built for ({shown}); every sample would be "
+                         "made up")
+    if np.any(lo < dlo - slack) or np.any(hi > dhi + slack):
+        warnings.warn(f"part of the grid lies outside the volume the tree {path} was built for ({shown}); "
+                      "the materials there are the tree's extrapolation", UserWarning, stacklevel=2)

@@ -230,6 +230,7 @@ class BSPTree:
         self.positive = np.ascontiguousarray(positive, dtype=np.int64)
         self.leaf = np.ascontiguousarray(leaf, dtype=np.int64)
         self.user = dict(user or {})
+        self.domain: tuple[float, ...] | None = None  # bounds of the volume it was built for, when read from a file
         n = len(self.kind)
         if n == 0:
             raise ValueError("a BSP tree needs at least one node")
@@ -340,30 +341,30 @@ class BSPTree:
             active = active[self.leaf[node[active]] < 0]
         return self.leaf[node], distance
 
-    def to_json(self, path: str | Path) -> Path:
-        """Save the tree to a small JSON file (built-in surfaces only)."""
+    def to_json(self, path: str | Path, *, domain=None) -> Path:
+        """Save the tree to a small JSON file (built-in surfaces only), with the ``domain`` it was built for
+        (bounds ``(xmin, xmax, ymin, ymax, zmin, zmax)``, optional); :meth:`from_json` sets it as ``domain``."""
         if self.user:
             raise TypeError("a tree with Python-callable surfaces cannot be saved")
         data = {"format": "pverosion-bsp", "version": 1, "kind": self.kind.tolist(),
                 "params": self.params.tolist(), "negative": self.negative.tolist(),
                 "positive": self.positive.tolist(), "leaf": self.leaf.tolist()}
-        path = Path(path)
-        with atomic_path(path) as tmp:
-            tmp.write_text(json.dumps(data), encoding="utf-8")
-        return path
+        return _write_json(path, data, domain)
 
     @classmethod
     def from_json(cls, path: str | Path) -> BSPTree | LatticeBSPTree:
         """Load a tree written by :meth:`to_json`, or by :meth:`LatticeBSPTree.to_json` (a :class:`LatticeBSPTree`)."""
         data = _read_json(path)
         if data.get("format") == LatticeBSPTree.FORMAT:
-            return LatticeBSPTree.from_dict(data)
+            return LatticeBSPTree.from_json(path)
         if data.get("format") != "pverosion-bsp":
             raise ValueError(f"{path} is not a pverosion BSP file")
         try:
-            return cls(data["kind"], data["params"], data["negative"], data["positive"], data["leaf"])
+            tree = cls(data["kind"], data["params"], data["negative"], data["positive"], data["leaf"])
         except (KeyError, TypeError, ValueError) as error:
             raise ValueError(f"{path}: damaged pverosion BSP file ({error})") from error
+        tree.domain = _read_domain(data, path)
+        return tree
 
     @property
     def nbytes(self) -> int:
@@ -707,6 +708,28 @@ def _preorder_height(direction, right):
     return -1
 
 
+def _write_json(path: str | Path, data: dict, domain) -> Path:
+    if domain is not None:
+        bounds = np.asarray(domain, dtype=np.float64).reshape(-1)
+        if bounds.shape != (6,) or not np.isfinite(bounds).all() or np.any(bounds[1::2] < bounds[::2]):
+            raise ValueError(f"domain must be finite bounds (xmin, xmax, ymin, ymax, zmin, zmax); got {domain!r}")
+        data = {**data, "domain": bounds.tolist()}
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(data), encoding="utf-8")
+    return path
+
+
+def _read_domain(data: dict, path) -> tuple[float, ...] | None:
+    if "domain" not in data:
+        return None
+    try:
+        bounds = np.asarray(data["domain"], dtype=np.float64).reshape(6)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{path}: damaged domain in the BSP file ({error})") from error
+    return tuple(bounds.tolist())
+
+
 def _read_json(path: str | Path) -> dict:
     """The JSON object in file ``path``; ``FileNotFoundError`` or a ``ValueError`` naming the file."""
     path = Path(path)
@@ -771,6 +794,7 @@ class LatticeBSPTree:
         self.directions = np.ascontiguousarray(directions)
         self.origin = np.ascontiguousarray(origin, dtype=np.float64).reshape(3)
         self.spacing = np.ascontiguousarray(spacing, dtype=np.float64).reshape(3)
+        self.domain: tuple[float, ...] | None = None  # as BSPTree.domain
         n = len(self.direction)
         if (self.direction.dtype != np.uint8 or self.value.dtype not in (np.int16, np.int32)
                 or self.right.dtype not in (np.uint16, np.uint32) or self.directions.dtype != np.int8):
@@ -866,17 +890,18 @@ class LatticeBSPTree:
         return cls(arrays["direction"], arrays["value"], arrays["right"], directions=directions, origin=origin,
                    spacing=spacing)
 
-    def to_json(self, path: str | Path) -> Path:
-        """Save the tree to a JSON file of its compressed arrays (read by :meth:`BSPTree.from_json` too)."""
-        path = Path(path)
-        with atomic_path(path) as tmp:
-            tmp.write_text(json.dumps(self.to_dict()), encoding="utf-8")
-        return path
+    def to_json(self, path: str | Path, *, domain=None) -> Path:
+        """Save the tree to a JSON file of its compressed arrays (read by :meth:`BSPTree.from_json` too), with the
+        ``domain`` it was built for (as :meth:`BSPTree.to_json`)."""
+        return _write_json(path, self.to_dict(), domain)
 
     @classmethod
     def from_json(cls, path: str | Path) -> LatticeBSPTree:
         """Load a tree written by :meth:`to_json`."""
-        return cls.from_dict(_read_json(path))
+        data = _read_json(path)
+        tree = cls.from_dict(data)
+        tree.domain = _read_domain(data, path)
+        return tree
 
 
 def build_from_labels(labels: np.ndarray, *, origin=(0.0, 0.0, 0.0), spacing=(1.0, 1.0, 1.0)) -> LatticeBSPTree:
