@@ -57,9 +57,9 @@ from pverosion.kernels._scatter import CHUNKS, chunk_range
 from pverosion.kernels._threads import for_chunks, for_ranges
 from pverosion.kernels.curvature.operator import CurvatureOperator
 from pverosion.kernels.exact.intersection import intersecting_faces, spatial_order
-from pverosion.kernels.mesh.geometry import vertex_normals
+from pverosion.kernels.mesh.geometry import average_edge_length, vertex_normals
 from pverosion.kernels.mesh.orientation import ORIENTATIONS, orient_faces
-from pverosion.kernels.mesh.remesh import CollapseTopology, apply_collapses, plan_collapses, short_edge_candidates
+from pverosion.kernels.mesh.remesh import CollapseTopology, apply_collapses, plan_collapses, short_edges_and_mean_length
 from pverosion.kernels.solver.protocol import SolverLoop
 from pverosion.kernels.validation import as_triangle_mesh
 
@@ -223,6 +223,7 @@ class GuardedMeshSolver(SolverLoop):
         self._scale = np.ones(len(pts))  # displacement length factor per input vertex
         self._origin = pts.mean(axis=0)
         self._collapsed: tuple | None = None  # collapses that :meth:`_build_topology` follows instead of a rebuild
+        self._edge_mean: tuple = (None, None, 0.0)  # points and edges the last improvement measured, mean length
         self._build_topology()
         self.initial_normals = vertex_normals(self.points, self.faces, weighting="area")
         self._volume0 = self.volume()
@@ -305,9 +306,22 @@ class GuardedMeshSolver(SolverLoop):
         """Cumulative displacement (V',) of every current vertex into the input surface, along its input normal."""
         return -np.einsum("ij,ij->i", self.displacement, self.initial_normals[self.ids])
 
+    def _mean_edge_length(self) -> float:
+        """Mean edge length of the current mesh.
+
+        The last mesh improvement measured it in its pass over the edges when the points and edges it saw are
+        still :attr:`points` and the edges (the same arrays: every step and every change of the mesh makes new
+        ones; do not write into :attr:`points` in place).
+        """
+        points, edges, mean = self._edge_mean
+        if points is self.points and edges is self._edges:
+            return mean
+        return average_edge_length(self.points, self.faces, edges=self._edges)
+
     def _improve(self, min_length: float, *, movable: np.ndarray | None = None) -> None:
         """Collapse edges shorter than ``min_length`` (only between ``movable`` vertices (V',) when given)."""
-        candidates = short_edge_candidates(self.points, self._edges, self._usable, min_length)
+        candidates, mean = short_edges_and_mean_length(self.points, self._edges, self._usable, min_length)
+        self._edge_mean = (self.points, self._edges, mean)  # for the next step, unless a collapse changes the mesh
         if len(candidates) == 0:
             return
         locked = self._fixed | (self._scale[self.ids] == 0.0)

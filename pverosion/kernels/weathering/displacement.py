@@ -31,7 +31,9 @@ def _displace_range(points, direction, unit, h_norm, h_raw, e_avg, power, length
             if size == 0.0:
                 continue
             vec = v3.scale(vec, 1.0 / size)
-        step = v3.scale(vec, (h_norm[i] ** power) * length * factor[i])
+        # x ** 1.0 is x exactly: the default power skips the call of pow, the slowest part of the loop
+        weight = h_norm[i] if power == 1.0 else h_norm[i] ** power
+        step = v3.scale(vec, weight * length * factor[i])
         v3.store(out, i, v3.add(v3.row(points, i), step))
         for d in range(3):
             displacement[i, d] += step[d]

@@ -29,7 +29,6 @@ import numpy as np
 from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS, normalize_symmetric
 from pverosion.kernels.curvature.operator import MeanCurvatureOperator
 from pverosion.kernels.materials.erodibility import Erodibility, check_erodibility, erodibility_now
-from pverosion.kernels.mesh.geometry import average_edge_length
 from pverosion.kernels.mesh.laplacian import laplacian_vectors
 from pverosion.kernels.mesh.locality import locality_renumbering
 from pverosion.kernels.solver.mesh_evolution import GuardedMeshSolver, volume_area
@@ -166,7 +165,7 @@ class WeatheringSolver(GuardedMeshSolver):
         else:
             direction = -curv.normals
         clock = self._lap("laplacian", clock)
-        e_avg = average_edge_length(self.points, self.faces, edges=self._edges)
+        e_avg = self._mean_edge_length()
         factor = self._scale[self.ids]
         if self._erodibility is not None:
             factor *= erodibility_now(self._erodibility, self.points, self.ids)
