@@ -209,24 +209,24 @@ def _table_size(n: int) -> int:
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _box_range(points, faces, order, local, lo, hi, ok, side, start, stop):
-    """Faces ``start`` to ``stop`` of ``local`` = ``faces[order]``: their vertices, boxes, whether they are
-    non-degenerate and their largest side."""
+def _box_range(points, faces, order, local, box, ok, side, start, stop):
+    """Faces ``start`` to ``stop`` of ``local`` = ``faces[order]``: their vertices, boxes (lowest then highest
+    corner in one row of ``box``), whether they are non-degenerate and their largest side."""
     for f in range(start, stop):
         g = order[f]
         local[f, 0], local[f, 1], local[f, 2] = faces[g, 0], faces[g, 1], faces[g, 2]
         p0, p1, p2 = v3.row(points, local[f, 0]), v3.row(points, local[f, 1]), v3.row(points, local[f, 2])
         for d in range(3):
-            lo[f, d] = min(p0[d], p1[d], p2[d])
-            hi[f, d] = max(p0[d], p1[d], p2[d])
+            box[f, d] = min(p0[d], p1[d], p2[d])
+            box[f, 3 + d] = max(p0[d], p1[d], p2[d])
         c = v3.cross(v3.sub(p1, p0), v3.sub(p2, p0))
         ok[f] = v3.dot(c, c) > 0.0
         if ok[f]:
-            side[f] = max(hi[f, 0] - lo[f, 0], hi[f, 1] - lo[f, 1], hi[f, 2] - lo[f, 2])
+            side[f] = max(box[f, 3] - box[f, 0], box[f, 4] - box[f, 1], box[f, 5] - box[f, 2])
 
 
 @njit(cache=True, error_model="numpy")
-def _grid_frame(lo, ok, side):
+def _grid_frame(box, ok, side):
     """Origin (lowest box corner), cell edge and number of the non-degenerate faces."""
     n_ok = 0
     total = 0.0
@@ -236,14 +236,14 @@ def _grid_frame(lo, ok, side):
             n_ok += 1
             total += side[f]
             for d in range(3):
-                origin[d] = min(origin[d], lo[f, d])
+                origin[d] = min(origin[d], box[f, d])
     # cell edge: the mean of the boxes' largest side, so a face covers a few cells
     h = total / n_ok if n_ok > 0 and total > 0.0 else 1.0
     return origin, h, n_ok
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _key_range(lo, hi, ok, origin, h, inv_h, keys, cell, count, start, stop):
+def _key_range(box, ok, origin, h, inv_h, keys, cell, count, start, stop):
     """For the non-degenerate faces ``start`` to ``stop``: the ranges of grid cells their boxes cover (lowest x,
     y, z, then highest), the number of these cells (in ``count[f + 1]``) and, when ``keys`` has entries, the
     Morton keys of their lowest cells."""
@@ -252,17 +252,18 @@ def _key_range(lo, hi, ok, origin, h, inv_h, keys, cell, count, start, stop):
         if ok[f]:
             if with_keys:
                 keys[f] = _morton(
-                    int((lo[f, 0] - origin[0]) / h), int((lo[f, 1] - origin[1]) / h), int((lo[f, 2] - origin[2]) / h)
+                    int((box[f, 0] - origin[0]) / h), int((box[f, 1] - origin[1]) / h), int((box[f, 2] - origin[2]) / h)
                 )
             for d in range(3):
-                cell[f, d] = int((lo[f, d] - origin[d]) * inv_h)
-                cell[f, 3 + d] = int((hi[f, d] - origin[d]) * inv_h)
+                cell[f, d] = int((box[f, d] - origin[d]) * inv_h)
+                cell[f, 3 + d] = int((box[f, 3 + d] - origin[d]) * inv_h)
             count[f + 1] = (cell[f, 3] - cell[f, 0] + 1) * (cell[f, 4] - cell[f, 1] + 1) * (cell[f, 5] - cell[f, 2] + 1)
 
 
 def _face_boxes(points: np.ndarray, faces: np.ndarray, order: np.ndarray | None = None, *,
                 keys: bool = False) -> tuple:
-    """The faces in ``order`` (by default as given) (F, 3), their boxes (F, 3) twice, whether they are
+    """The faces in ``order`` (by default as given) (F, 3), their boxes (F, 6) (lowest then highest corner, the
+    row a pair test reads), whether they are
     non-degenerate (F,), Morton keys (F,) (with ``keys``, else none), the number of non-degenerate faces, the
     range of grid cells every box covers (F, 6) (set for non-degenerate faces) and the first grid entry of
     every face (F + 1,) (the cumulated numbers of cells the boxes cover, none for degenerate faces)."""
@@ -270,18 +271,17 @@ def _face_boxes(points: np.ndarray, faces: np.ndarray, order: np.ndarray | None 
     if order is None:
         order = np.arange(n)
     local = np.empty_like(faces)
-    lo = np.empty((n, 3))
-    hi = np.empty((n, 3))
+    box = np.empty((n, 6))
     ok = np.empty(n, np.bool_)
     side = np.empty(n)
-    for_ranges(_box_range, n, points, faces, order, local, lo, hi, ok, side)
-    origin, h, n_ok = _grid_frame(lo, ok, side)
+    for_ranges(_box_range, n, points, faces, order, local, box, ok, side)
+    origin, h, n_ok = _grid_frame(box, ok, side)
     morton = np.zeros(n if keys else 0, np.int64)
     cell = np.empty((n, 6), np.int64)  # rows of degenerate faces stay unset: never read
     offset = np.zeros(n + 1, np.int64)
-    for_ranges(_key_range, n, lo, hi, ok, origin, h, 1.0 / h, morton, cell, offset)
+    for_ranges(_key_range, n, box, ok, origin, h, 1.0 / h, morton, cell, offset)
     np.cumsum(offset, out=offset)
-    return local, lo, hi, ok, morton, n_ok, cell, offset
+    return local, box, ok, morton, n_ok, cell, offset
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -469,7 +469,7 @@ def _apart_by_a_plane(points, faces, f, g, shared):
 
 
 @njit(cache=True, error_model="numpy")
-def _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, f,
+def _face_box_pairs(points, faces, planes, box, group, query, cell, start, entries, cells, size, f,
                     out, n_out):
     """Faces g whose boxes meet f's box, that share no edge with f, (with groups) are in another group, and
     that neither lies strictly on one side of the other's plane nor of a plane of :func:`_apart_by_a_plane`
@@ -493,8 +493,8 @@ def _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, en
                     # visit the pair only in the first cell both boxes cover
                     if max(fx0, cell[g, 0]) != ix or max(fy0, cell[g, 1]) != iy or max(fz0, cell[g, 2]) != iz:
                         continue
-                    if (lo[f, 0] > hi[g, 0] or lo[g, 0] > hi[f, 0] or lo[f, 1] > hi[g, 1] or lo[g, 1] > hi[f, 1]
-                            or lo[f, 2] > hi[g, 2] or lo[g, 2] > hi[f, 2]):
+                    if (box[f, 0] > box[g, 3] or box[g, 0] > box[f, 3] or box[f, 1] > box[g, 4]
+                            or box[g, 1] > box[f, 4] or box[f, 2] > box[g, 5] or box[g, 2] > box[f, 5]):
                         continue
                     shared = _shared_vertices(faces, f, g)
                     if shared > 1:
@@ -567,26 +567,26 @@ def _nearly_one_plane(planes, f, g):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _pair_range(points, faces, planes, lo, hi, todo, group, query, cell, start, entries, cells, size, first, last):
+def _pair_range(points, faces, planes, box, todo, group, query, cell, start, entries, cells, size, first, last):
     """The pairs of faces ``todo[first:last]`` (K, 2), face by face, in one pass: a face whose pairs overflow the
     buffer is searched again after the buffer has grown."""
     out = np.empty((max(16, (last - first) // 4), 2), np.int64)
     n = np.int64(0)
     for i in range(first, last):
         f = todo[i]
-        m = _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, f, out, n)
+        m = _face_box_pairs(points, faces, planes, box, group, query, cell, start, entries, cells, size, f, out, n)
         if m > out.shape[0]:
             grown = np.empty((max(2 * out.shape[0], m), 2), np.int64)
             for j in range(n):  # element by element: an array slice assignment compiles numba's shape error
                 grown[j, 0], grown[j, 1] = out[j, 0], out[j, 1]
             out = grown
-            m = _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, f,
-                                out, n)
+            m = _face_box_pairs(points, faces, planes, box, group, query, cell, start, entries, cells, size, f, out,
+                                n)
         n = m
     return out[:n]
 
 
-def _box_pairs(points, faces, planes, lo, hi, ok, group, query, cell, start, entries, cells, size) -> np.ndarray:
+def _box_pairs(points, faces, planes, box, ok, group, query, cell, start, entries, cells, size) -> np.ndarray:
     """All face pairs (f < g) of :func:`candidate_pairs`, grouped by the queried face (by f without a query):
     (K, 2)."""
     parts = {}
@@ -596,14 +596,15 @@ def _box_pairs(points, faces, planes, lo, hi, ok, group, query, cell, start, ent
 
     # the usable (queried) faces, ascending, split evenly between the threads
     todo = np.flatnonzero(ok if query.shape[0] == 0 else ok & query)
-    for_ranges(part, len(todo), points, faces, planes, lo, hi, todo, group, query, cell, start, entries, cells,
+    for_ranges(part, len(todo), points, faces, planes, box, todo, group, query, cell, start, entries, cells,
                size, min_items=HEAVY_ITEMS_PER_RANGE)
     return parts[0] if len(parts) == 1 else np.concatenate([parts[first] for first in sorted(parts)])
 
 
 @njit(cache=True, error_model="numpy")
-def _near_query(lo, hi, ok, query):
-    """``ok`` (F,) narrowed to the faces whose boxes (``lo``, ``hi`` (F, 3)) meet the box around the queried
+def _near_query(box, ok, query):
+    """``ok`` (F,) narrowed to the faces whose boxes (``box`` (F, 6): lowest then highest corner) meet the box
+    around the queried
     usable faces (only they can meet a queried face), and its count; none when no usable face is queried."""
     top = np.full(3, -np.inf)
     bottom = np.full(3, np.inf)
@@ -612,15 +613,15 @@ def _near_query(lo, hi, ok, query):
         if ok[f] and query[f]:
             queried = True
             for d in range(3):
-                top[d] = max(top[d], hi[f, d])
-                bottom[d] = min(bottom[d], lo[f, d])
+                top[d] = max(top[d], box[f, 3 + d])
+                bottom[d] = min(bottom[d], box[f, d])
     near = np.zeros(ok.shape[0], np.bool_)
     n = 0
     if not queried:
         return near, n
     for f in range(ok.shape[0]):
-        if (ok[f] and lo[f, 0] <= top[0] and hi[f, 0] >= bottom[0] and lo[f, 1] <= top[1] and hi[f, 1] >= bottom[1]
-                and lo[f, 2] <= top[2] and hi[f, 2] >= bottom[2]):
+        if (ok[f] and box[f, 0] <= top[0] and box[f, 3] >= bottom[0] and box[f, 1] <= top[1]
+                and box[f, 4] >= bottom[1] and box[f, 2] <= top[2] and box[f, 5] >= bottom[2]):
             near[f] = True
             n += 1
     return near, n
@@ -669,15 +670,15 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     wanted = np.zeros(0, bool) if query is None else np.asarray(query, dtype=bool)
     if query is not None and wanted.shape != (len(fcs),):
         raise ValueError(f"query must have shape ({len(fcs)},); got {wanted.shape}")
-    _, lo, hi, ok, _, n_ok, cell, offset = _face_boxes(pts, fcs)
+    _, box, ok, _, n_ok, cell, offset = _face_boxes(pts, fcs)
     if query is not None and n_ok:
-        ok, n_ok = _near_query(lo, hi, ok, wanted)
+        ok, n_ok = _near_query(box, ok, wanted)
         offset = _entry_offsets(offset, ok)
     if n_ok == 0:
         return np.zeros((0, 2), np.int64)
     size = _table_size(n_ok)
     start, entries, cells, _ = _build_grid(cell, offset, ok, ok, size)
-    return _box_pairs(pts, fcs, _face_planes(pts, fcs), lo, hi, ok, grp, wanted, cell, start, entries,
+    return _box_pairs(pts, fcs, _face_planes(pts, fcs), box, ok, grp, wanted, cell, start, entries,
                       cells, size)
 
 
@@ -698,7 +699,7 @@ def spatial_order(points, faces) -> np.ndarray:
     numpy.ndarray, shape (F,), int64
     """
     pts, fcs = as_triangle_mesh(points, faces)
-    return np.argsort(_face_boxes(pts, fcs, keys=True)[4], kind="stable")
+    return np.argsort(_face_boxes(pts, fcs, keys=True)[3], kind="stable")
 
 
 def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
@@ -733,17 +734,17 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
     if order.min(initial=0) < 0 or order.max(initial=-1) >= len(fcs):
         raise ValueError(f"order must hold face indices below {len(fcs)}")
     # visit the faces in Morton order, so neighbours in space are near in memory
-    local, lo, hi, ok, _, n_ok, cell, offset = _face_boxes(pts, fcs, order)
+    local, box, ok, _, n_ok, cell, offset = _face_boxes(pts, fcs, order)
     hits = np.zeros(len(fcs), bool)
     local_query = q[order]
     if query is not None and n_ok and not q.all():  # few faces near a local query (vertices moved in one place)
-        ok, n_ok = _near_query(lo, hi, ok, local_query)
+        ok, n_ok = _near_query(box, ok, local_query)
         offset = _entry_offsets(offset, ok)
     if n_ok == 0:
         return hits
     size = _table_size(n_ok)
     grid = _build_grid(cell, offset, ok, local_query, size)
-    hits[order] = _count_hits(pts, local, np.concatenate((lo, hi), axis=1), grid, size)
+    hits[order] = _count_hits(pts, local, box, grid, size)
     return hits
 
 

@@ -106,16 +106,31 @@ def volume_area(points: np.ndarray, faces: np.ndarray, origin: np.ndarray) -> tu
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _moved_range(points, clean, source, faces, made, out, start, stop):
-    """Faces ``start`` to ``stop`` of :meth:`GuardedMeshSolver._moved_faces`: ``made`` or with a vertex not at its
-    place ``clean[source]`` of the restart point."""
+def _moved_vertex_range(points, clean, source, out, start, stop):
+    """Vertices ``start`` to ``stop``: not at their place ``clean[source]`` of the restart point."""
+    for v in range(start, stop):
+        s = source[v]
+        out[v] = points[v, 0] != clean[s, 0] or points[v, 1] != clean[s, 1] or points[v, 2] != clean[s, 2]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _moved_range(moved_vertex, faces, made, out, start, stop):
+    """Faces ``start`` to ``stop`` of :meth:`GuardedMeshSolver._moved_faces`: ``made`` or with a vertex
+    ``moved_vertex``."""
     for f in range(start, stop):
-        moved = made[f]
-        for t in range(3):
-            v = faces[f, t]
-            s = source[v]
-            moved = moved or points[v, 0] != clean[s, 0] or points[v, 1] != clean[s, 1] or points[v, 2] != clean[s, 2]
-        out[f] = moved
+        out[f] = made[f] | moved_vertex[faces[f, 0]] | moved_vertex[faces[f, 1]] | moved_vertex[faces[f, 2]]
+
+
+@njit(cache=True, error_model="numpy")
+def _grow_by_ring(ring_ptr, ring_idx, near):
+    """``near`` (V,) and every vertex with a one-ring neighbour (CSR ``ring_ptr``, ``ring_idx``) in it."""
+    grown = near.copy()
+    for v in range(near.shape[0]):
+        for k in range(ring_ptr[v], ring_ptr[v + 1]):
+            if near[ring_idx[k]]:
+                grown[v] = True
+                break
+    return grown
 
 
 @dataclass
@@ -390,8 +405,10 @@ class GuardedMeshSolver(SolverLoop):
         if self._baseline:
             return None  # a self-intersecting input is always compared whole against its baseline
         source, made = self._since_clean
+        moved_vertex = np.empty(len(self.points), bool)
+        for_ranges(_moved_vertex_range, len(self.points), self.points, self._clean.points, source, moved_vertex)
         moved = np.empty(len(self.faces), bool)
-        for_ranges(_moved_range, len(self.faces), self.points, self._clean.points, source, self.faces, made, moved)
+        for_ranges(_moved_range, len(self.faces), moved_vertex, self.faces, made, moved)
         if moved.all():
             return None  # every face has a moved vertex
         return moved
@@ -449,15 +466,11 @@ class GuardedMeshSolver(SolverLoop):
     def _roll_back(self, hits: np.ndarray) -> None:
         """Restore the restart point after halving the steps of the vertices of the faces ``hits`` (F,) and of their
         two-ring neighbourhood."""
-        import scipy.sparse as sp  # on the first rollback only: the stage starts compiling without SciPy
-
-        near = np.zeros(len(self.points))
-        near[self.faces[hits].ravel()] = 1.0
+        near = np.zeros(len(self.points), bool)
+        near[self.faces[hits].ravel()] = True
         ring_ptr, ring_idx = self._ring
-        pattern = sp.csr_matrix((np.ones(len(ring_idx)), ring_idx, ring_ptr), shape=(len(near), len(near)))
-        near = near + pattern @ near
-        near = near + pattern @ near
-        ids = self.ids[near > 0]
+        near = _grow_by_ring(ring_ptr, ring_idx, _grow_by_ring(ring_ptr, ring_idx, near))
+        ids = self.ids[near]
         if not np.any(self._scale[ids] > 0.0):
             raise RuntimeError(
                 f"self-intersections appeared after step {self._clean.step} next to frozen vertices only; "
