@@ -168,11 +168,6 @@ def triangles_intersect(p, q) -> bool:
 
 
 @njit(cache=True, error_model="numpy")
-def _key(ix, iy, iz):
-    return (ix << 42) | (iy << 21) | iz
-
-
-@njit(cache=True, error_model="numpy")
 def _spread(x):
     """Spread the low 21 bits of x two bits apart (Morton code helper)."""
     x &= 0x1FFFFF
@@ -195,17 +190,11 @@ def _morton(ix, iy, iz):
     return _interleave(_spread(ix), _spread(iy), _spread(iz))
 
 
-@njit(cache=True, error_model="numpy")
-def _hash(ix, iy, iz, size):
-    """Bucket of a cell: the low bits of its Morton code (``size``: a power of two), so that cells near in space
-    mostly land in buckets near in memory."""
-    return _morton(ix, iy, iz) & (size - 1)
-
-
 def _table_size(n: int) -> int:
-    """Buckets of the spatial hash of ``n`` faces: the smallest power of two above 2 n (a mask, not a division,
-    finds a cell's bucket)."""
-    return 1 << (2 * n).bit_length()
+    """Buckets of the spatial hash of ``n`` faces: the smallest power of two above 2 n, and at least 16 (a mask, not
+    a division, finds a cell's bucket: the low bits of its Morton code, so that cells near in space mostly land in
+    buckets near in memory; the bits above them and four flag bits make an entry's key, see :func:`_bucket_range`)."""
+    return max(16, 1 << (2 * n).bit_length())
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -285,28 +274,33 @@ def _face_boxes(points: np.ndarray, faces: np.ndarray, order: np.ndarray | None 
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _bucket_range(cell, ok, offset, size, bucket, start, stop):
-    """Buckets (:func:`_hash`) of the grid entries of faces ``start`` to ``stop`` (every cell their boxes cover, in
-    x, y, z loop order), from ``offset[f]`` on."""
+def _bucket_range(cell, ok, query, offset, size, shift, bucket, keys, start, stop):
+    """Buckets and keys of the grid entries of faces ``start`` to ``stop`` (every cell their boxes cover, in x, y, z
+    loop order), from ``offset[f]`` on. The bucket of a cell is the low ``shift`` bits of its Morton code (``size``
+    = 2 ** ``shift`` >= 16); the key holds the bits above them from bit 4 on (with the bucket, the cell) and flags
+    in bits 0-3 (bits 0-2: the cell is the face's lowest along x, y, z; bit 3: ``query`` holds for the face)."""
     mask = size - 1
     for f in range(start, stop):
         if not ok[f]:
             continue
         k = offset[f]
-        for ix in range(cell[f, 0], cell[f, 3] + 1):
+        queried = 8 if query[f] else 0
+        x0, y0, z0 = cell[f, 0], cell[f, 1], cell[f, 2]
+        for ix in range(x0, cell[f, 3] + 1):
             sx = _spread(ix)
-            for iy in range(cell[f, 1], cell[f, 4] + 1):
+            for iy in range(y0, cell[f, 4] + 1):
                 sy = _spread(iy)
-                for iz in range(cell[f, 2], cell[f, 5] + 1):
-                    bucket[k] = _interleave(sx, sy, _spread(iz)) & mask  # _hash, the spreads once per row
+                for iz in range(z0, cell[f, 5] + 1):
+                    code = _interleave(sx, sy, _spread(iz))  # _morton, the spreads once per row
+                    bucket[k] = code & mask
+                    keys[k] = ((code >> shift) << 4) | queried | (ix == x0) | ((iy == y0) << 1) | ((iz == z0) << 2)
                     k += 1
 
 
 @njit(cache=True, error_model="numpy")
-def _bucket_fill(cell, ok, query, bucket, size):
-    """The grid entries grouped by bucket (``bucket``: each entry's, in face and loop order; stable): bucket starts
-    (size + 1,), faces, packed cell keys and flags (bits 0-2: the cell is the face's lowest along x, y, z; bit 3:
-    the face is queried)."""
+def _bucket_fill(offset, bucket, keys, size):
+    """The grid entries grouped by bucket (``bucket``, ``keys``: each entry's, in face and loop order, the entries
+    of face f from ``offset[f]`` to ``offset[f + 1]``; stable): bucket starts (size + 1,), faces and keys."""
     n = bucket.shape[0]
     start = np.zeros(size + 1, np.int64)
     for k in range(n):
@@ -316,33 +310,26 @@ def _bucket_fill(cell, ok, query, bucket, size):
     fill = start[:-1].copy()
     entries = np.empty(n, np.int64)
     cells = np.empty(n, np.int64)
-    flags = np.empty(n, np.int8)
-    k = 0
-    for f in range(cell.shape[0]):
-        if not ok[f]:
-            continue
-        queried = 8 if query[f] else 0
-        x0, y0, z0, x1, y1, z1 = cell[f, 0], cell[f, 1], cell[f, 2], cell[f, 3], cell[f, 4], cell[f, 5]
-        for ix in range(x0, x1 + 1):
-            for iy in range(y0, y1 + 1):
-                for iz in range(z0, z1 + 1):
-                    i = fill[bucket[k]]
-                    entries[i] = f
-                    cells[i] = _key(ix, iy, iz)
-                    flags[i] = queried | (1 if ix == x0 else 0) | (2 if iy == y0 else 0) | (4 if iz == z0 else 0)
-                    fill[bucket[k]] = i + 1
-                    k += 1
-    return start, entries, cells, flags
+    for f in range(offset.shape[0] - 1):
+        for k in range(offset[f], offset[f + 1]):
+            b = bucket[k]
+            i = fill[b]
+            entries[i] = f
+            cells[i] = keys[k]
+            fill[b] = i + 1
+    return start, entries, cells
 
 
 def _build_grid(cell: np.ndarray, offset: np.ndarray, ok: np.ndarray, query: np.ndarray, size: int) -> tuple:
-    """Spatial hash of ``size`` buckets: the non-degenerate faces covering each bucket's cells (ranges ``cell``
-    (F, 6), first entries ``offset`` (F + 1,)), in face order, with each entry's packed cell key and flags
-    (bits 0-2: the cell is the face's lowest along x, y, z; bit 3: ``query`` (F,) holds for the face)."""
+    """Spatial hash of ``size`` buckets (:func:`_table_size`): the non-degenerate faces covering each bucket's
+    cells (ranges ``cell`` (F, 6), first entries ``offset`` (F + 1,)), in face order, with each entry's key of
+    :func:`_bucket_range` (``query`` (F,) sets bit 3)."""
     n = cell.shape[0]
     bucket = np.empty(int(offset[-1]), np.int32 if size < 2**31 else np.int64)
-    for_ranges(_bucket_range, n, cell, ok, offset, size, bucket)  # the hashes, in parallel
-    return _bucket_fill(cell, ok, query, bucket, size)
+    keys = np.empty(int(offset[-1]), np.int64)
+    # the hashes and keys in parallel, the serial grouping only moves them
+    for_ranges(_bucket_range, n, cell, ok, query, offset, size, size.bit_length() - 1, bucket, keys)
+    return _bucket_fill(offset, bucket, keys, size)
 
 
 @njit(cache=True, error_model="numpy")
@@ -356,19 +343,19 @@ def _shared_vertices(faces, f, g):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _hits_range(points, faces, box, start, entries, cells, flags, hits, first, last):
+def _hits_range(points, faces, box, start, entries, cells, hits, first, last):
     """Flag in ``hits`` the faces that meet a non-adjacent face, testing the pairs with a queried face in the
     cells of buckets ``first`` to ``last``, each pair in the first cell both boxes cover (the cell where, along
-    every axis, one of the two is lowest: the entries' flags together have all four bits); both faces of a hit
+    every axis, one of the two is lowest: the flags of the entries' keys together have all four bits); both faces
+    of a hit
     are flagged, another range may flag the same face, with the same value. ``box`` (F, 6): every face's lowest
     then highest corner, in one row."""
     for b in range(first, last):
         for i in range(start[b], start[b + 1] - 1):
             key = cells[i]
-            f_flags = flags[i]
             f = -1
             for j in range(i + 1, start[b + 1]):
-                if cells[j] != key or (f_flags | flags[j]) != 15:
+                if (cells[j] ^ key) >> 4 != 0 or (cells[j] | key) & 15 != 15:
                     continue  # another cell hashed here, the pair meets in an earlier cell, or neither is queried
                 if f < 0:  # the face's box and corners, read once a pair needs them
                     f = entries[i]
@@ -469,7 +456,7 @@ def _apart_by_a_plane(points, faces, f, g, shared):
 
 
 @njit(cache=True, error_model="numpy")
-def _face_box_pairs(points, faces, planes, box, group, query, cell, start, entries, cells, size, f,
+def _face_box_pairs(points, faces, planes, box, group, query, cell, start, entries, cells, size, shift, f,
                     out, n_out):
     """Faces g whose boxes meet f's box, that share no edge with f, (with groups) are in another group, and
     that neither lies strictly on one side of the other's plane nor of a plane of :func:`_apart_by_a_plane`
@@ -481,14 +468,15 @@ def _face_box_pairs(points, faces, planes, box, group, query, cell, start, entri
     for ix in range(fx0, fx1 + 1):
         for iy in range(fy0, fy1 + 1):
             for iz in range(fz0, fz1 + 1):
-                b = _hash(ix, iy, iz, size)
-                key = _key(ix, iy, iz)
+                code = _morton(ix, iy, iz)
+                b = code & (size - 1)
+                key = code >> shift
                 for e in range(start[b], start[b + 1]):
                     g = entries[e]
                     # with a query: the pairs of queried faces f with any g, each pair once
                     if g == f or (g < f and (query.shape[0] == 0 or query[g])):
                         continue
-                    if cells[e] != key or (grouped and group[f] == group[g]):
+                    if cells[e] >> 4 != key or (grouped and group[f] == group[g]):
                         continue
                     # visit the pair only in the first cell both boxes cover
                     if max(fx0, cell[g, 0]) != ix or max(fy0, cell[g, 1]) != iy or max(fz0, cell[g, 2]) != iz:
@@ -567,21 +555,23 @@ def _nearly_one_plane(planes, f, g):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _pair_range(points, faces, planes, box, todo, group, query, cell, start, entries, cells, size, first, last):
+def _pair_range(points, faces, planes, box, todo, group, query, cell, start, entries, cells, size, shift, first,
+                last):
     """The pairs of faces ``todo[first:last]`` (K, 2), face by face, in one pass: a face whose pairs overflow the
     buffer is searched again after the buffer has grown."""
     out = np.empty((max(16, (last - first) // 4), 2), np.int64)
     n = np.int64(0)
     for i in range(first, last):
         f = todo[i]
-        m = _face_box_pairs(points, faces, planes, box, group, query, cell, start, entries, cells, size, f, out, n)
+        m = _face_box_pairs(points, faces, planes, box, group, query, cell, start, entries, cells, size, shift, f,
+                            out, n)
         if m > out.shape[0]:
             grown = np.empty((max(2 * out.shape[0], m), 2), np.int64)
             for j in range(n):  # element by element: an array slice assignment compiles numba's shape error
                 grown[j, 0], grown[j, 1] = out[j, 0], out[j, 1]
             out = grown
-            m = _face_box_pairs(points, faces, planes, box, group, query, cell, start, entries, cells, size, f, out,
-                                n)
+            m = _face_box_pairs(points, faces, planes, box, group, query, cell, start, entries, cells, size, shift,
+                                f, out, n)
         n = m
     return out[:n]
 
@@ -597,7 +587,7 @@ def _box_pairs(points, faces, planes, box, ok, group, query, cell, start, entrie
     # the usable (queried) faces, ascending, split evenly between the threads
     todo = np.flatnonzero(ok if query.shape[0] == 0 else ok & query)
     for_ranges(part, len(todo), points, faces, planes, box, todo, group, query, cell, start, entries, cells,
-               size, min_items=HEAVY_ITEMS_PER_RANGE)
+               size, size.bit_length() - 1, min_items=HEAVY_ITEMS_PER_RANGE)
     return parts[0] if len(parts) == 1 else np.concatenate([parts[first] for first in sorted(parts)])
 
 
@@ -677,7 +667,7 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     if n_ok == 0:
         return np.zeros((0, 2), np.int64)
     size = _table_size(n_ok)
-    start, entries, cells, _ = _build_grid(cell, offset, ok, ok, size)
+    start, entries, cells = _build_grid(cell, offset, ok, ok, size)
     return _box_pairs(pts, fcs, _face_planes(pts, fcs), box, ok, grp, wanted, cell, start, entries,
                       cells, size)
 
