@@ -727,7 +727,9 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
     local, box, ok, _, n_ok, cell, offset = _face_boxes(pts, fcs, order)
     hits = np.zeros(len(fcs), bool)
     local_query = q[order]
-    if query is not None and n_ok and not q.all():  # few faces near a local query (vertices moved in one place)
+    # few faces near a local query (vertices moved in one place); the box around half the faces or more holds
+    # nearly all of them
+    if query is not None and n_ok and 2 * np.count_nonzero(q) < n_ok:
         ok, n_ok = _near_query(box, ok, local_query)
         offset = _entry_offsets(offset, ok)
     if n_ok == 0:
