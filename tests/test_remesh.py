@@ -1,13 +1,14 @@
 import numpy as np
 from conftest import icosphere
 
-from pverosion.kernels.mesh.geometry import face_normals, signed_volume
+from pverosion.kernels.mesh.geometry import average_edge_length, face_normals, signed_volume
 from pverosion.kernels.mesh.remesh import (
     CollapseTopology,
     apply_collapses,
     collapse_short_edges,
     plan_collapses,
     short_edge_candidates,
+    short_edges_and_mean_length,
 )
 from pverosion.kernels.mesh.topology import edge_topology
 
@@ -135,3 +136,23 @@ def _new_face_rows(faces, new_face, result):
     remap = np.full(len(target), -1)
     remap[result.kept] = np.arange(len(result.kept))
     return remap[target[faces[new_face >= 0]]]
+
+
+def test_short_edges_and_mean_length_equal_the_two_passes_bit_for_bit_on_any_thread_count():
+    """One pass over the edges gives the candidates of :func:`short_edge_candidates` and, bit for bit, the mean of
+    :func:`average_edge_length` (a step's threshold and the next step's mean come from it), with one thread and
+    with all."""
+    from conftest import one_and_all_threads
+
+    points, faces = _sphere_with_short_edges(n_short=40, seed=3)
+    topo = edge_topology(faces, len(points))
+    usable = np.ones(len(topo.edges), bool)
+    usable[::7] = False  # unusable edges are measured but never candidates
+    mean = average_edge_length(points, faces, edges=topo.edges)
+    for threshold, expect_short in ((0.1 * mean, True), (1e-6 * mean, False)):
+        one, every = one_and_all_threads(
+            lambda t=threshold: short_edges_and_mean_length(points, topo.edges, usable, t))
+        for candidates, mean_length in (one, every):
+            assert mean_length == mean
+            assert np.array_equal(candidates, short_edge_candidates(points, topo.edges, usable, threshold))
+            assert (len(candidates) > 0) == expect_short

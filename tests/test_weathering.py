@@ -434,3 +434,77 @@ def test_a_mesh_of_poor_locality_is_renumbered_and_weathers_as_in_its_own_order(
     assert np.allclose(by_input(local, local.points), by_input(plain, plain.points)[perm], rtol=0.0, atol=1e-12)
     assert np.allclose(by_input(local, local.displacement), by_input(plain, plain.displacement)[perm], rtol=0.0,
                        atol=1e-12)
+
+
+def test_displacement_along_the_ring_equals_the_laplacian_vectors_bit_for_bit():
+    """A step whose direction the displacement kernel sums from the one-ring moves every vertex exactly as one
+    along :func:`laplacian_vectors`, on a scan with fixed rim vertices, concave and frozen places."""
+    from pverosion.kernels.mesh.laplacian import laplacian_vectors
+    from pverosion.kernels.weathering.displacement import displace
+
+    rock = pverosion.examples.load_rock(subdivisions=3, seed=5)
+    solver = WeatheringSolver(rock.points, rock.regular_faces)
+    points = solver.points
+    h = solver.mean_curvature()
+    h_norm = h / np.abs(h).max()
+    factor = np.where(np.arange(len(points)) % 5 == 0, 0.0, 1.0)  # some frozen vertices
+    fixed = np.zeros(len(points), bool)
+    fixed[::11] = True
+    e_avg = 0.01
+    runs = []
+    for direction, ring in ((laplacian_vectors(points, solver.faces, ring=solver._ring), None),
+                            (None, solver._ring)):
+        displacement = np.zeros_like(points)
+        moved = displace(points, direction, True, h_norm, h, e_avg, 2.0, e_avg / 10, factor, fixed, displacement,
+                         ring=ring)
+        runs.append((moved, displacement))
+    (by_vectors, d_vectors), (by_ring, d_ring) = runs
+    assert np.array_equal(by_ring, by_vectors) and np.array_equal(d_ring, d_vectors)
+    changed = np.any(by_ring != points, axis=1)
+    assert changed.any() and not changed[fixed].any() and not changed[factor == 0.0].any()
+    assert not changed[h <= 0].any()
+
+
+def test_the_mean_edge_length_of_a_step_is_measured_again_after_the_mesh_changes():
+    """The improvement's pass over the edges measures the mean edge length the next step uses; it equals a
+    measure of the current mesh (over its edges in the solver's order, as a step sums them) after steps,
+    collapses and rollbacks alike."""
+    from conftest import icosphere
+
+    from pverosion.kernels.mesh.geometry import average_edge_length
+
+    sphere = icosphere(1.0, 3)
+    points, faces = np.asarray(sphere.points, dtype=np.float64), sphere.regular_faces.astype(np.int64)
+    for a, b in faces[[0, 200, 400], :2]:  # three short edges for the improvement to collapse
+        points[b] = points[a] + 0.02 * (points[b] - points[a])
+    solver = WeatheringSolver(points, faces, min_edge_ratio=0.3, check_every=2)
+    for _ in range(6):
+        solver.run(1)
+        assert solver._mean_edge_length() == average_edge_length(solver.points, None, edges=solver._edges)
+    assert solver.collapses == 3
+    solver._step()  # unchecked
+    solver._roll_back(np.arange(len(solver.faces)) == 0)  # back to the restart point of step 6
+    assert solver.step_count == 6
+    assert solver._mean_edge_length() == average_edge_length(solver.points, None, edges=solver._edges)
+    solver.points = solver.points * 2.0  # a mesh handed in from outside: measured anew
+    assert solver._mean_edge_length() == average_edge_length(solver.points, None, edges=solver._edges)
+
+
+def test_a_rollback_slows_down_exactly_the_two_ring_of_the_tangled_faces():
+    from conftest import icosphere
+
+    sphere = icosphere(1.0, 3)
+    solver = WeatheringSolver(sphere.points, sphere.regular_faces)
+    hits = np.zeros(len(solver.faces), bool)
+    hits[[3, 500]] = True
+    topo = edge_topology(solver.faces, len(solver.points))
+    near = np.zeros(len(solver.points), bool)
+    near[solver.faces[hits].ravel()] = True
+    for _ in range(2):  # two rings by the edges, from the vertices of the tangled faces
+        a, b = topo.edges.T
+        grown = near.copy()
+        grown[a[near[b]]] = True
+        grown[b[near[a]]] = True
+        near = grown
+    solver._roll_back(hits)
+    assert np.array_equal(solver._scale[solver.ids] == 0.5, near) and np.all(solver._scale[~near] == 1.0)

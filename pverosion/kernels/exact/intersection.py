@@ -168,11 +168,6 @@ def triangles_intersect(p, q) -> bool:
 
 
 @njit(cache=True, error_model="numpy")
-def _key(ix, iy, iz):
-    return (ix << 42) | (iy << 21) | iz
-
-
-@njit(cache=True, error_model="numpy")
 def _spread(x):
     """Spread the low 21 bits of x two bits apart (Morton code helper)."""
     x &= 0x1FFFFF
@@ -195,38 +190,32 @@ def _morton(ix, iy, iz):
     return _interleave(_spread(ix), _spread(iy), _spread(iz))
 
 
-@njit(cache=True, error_model="numpy")
-def _hash(ix, iy, iz, size):
-    """Bucket of a cell: the low bits of its Morton code (``size``: a power of two), so that cells near in space
-    mostly land in buckets near in memory."""
-    return _morton(ix, iy, iz) & (size - 1)
-
-
 def _table_size(n: int) -> int:
-    """Buckets of the spatial hash of ``n`` faces: the smallest power of two above 2 n (a mask, not a division,
-    finds a cell's bucket)."""
-    return 1 << (2 * n).bit_length()
+    """Buckets of the spatial hash of ``n`` faces: the smallest power of two above 2 n, and at least 16 (a mask, not
+    a division, finds a cell's bucket: the low bits of its Morton code, so that cells near in space mostly land in
+    buckets near in memory; the bits above them and four flag bits make an entry's key, see :func:`_bucket_range`)."""
+    return max(16, 1 << (2 * n).bit_length())
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _box_range(points, faces, order, local, lo, hi, ok, side, start, stop):
-    """Faces ``start`` to ``stop`` of ``local`` = ``faces[order]``: their vertices, boxes, whether they are
-    non-degenerate and their largest side."""
+def _box_range(points, faces, order, local, box, ok, side, start, stop):
+    """Faces ``start`` to ``stop`` of ``local`` = ``faces[order]``: their vertices, boxes (lowest then highest
+    corner in one row of ``box``), whether they are non-degenerate and their largest side."""
     for f in range(start, stop):
         g = order[f]
         local[f, 0], local[f, 1], local[f, 2] = faces[g, 0], faces[g, 1], faces[g, 2]
         p0, p1, p2 = v3.row(points, local[f, 0]), v3.row(points, local[f, 1]), v3.row(points, local[f, 2])
         for d in range(3):
-            lo[f, d] = min(p0[d], p1[d], p2[d])
-            hi[f, d] = max(p0[d], p1[d], p2[d])
+            box[f, d] = min(p0[d], p1[d], p2[d])
+            box[f, 3 + d] = max(p0[d], p1[d], p2[d])
         c = v3.cross(v3.sub(p1, p0), v3.sub(p2, p0))
         ok[f] = v3.dot(c, c) > 0.0
         if ok[f]:
-            side[f] = max(hi[f, 0] - lo[f, 0], hi[f, 1] - lo[f, 1], hi[f, 2] - lo[f, 2])
+            side[f] = max(box[f, 3] - box[f, 0], box[f, 4] - box[f, 1], box[f, 5] - box[f, 2])
 
 
 @njit(cache=True, error_model="numpy")
-def _grid_frame(lo, ok, side):
+def _grid_frame(box, ok, side):
     """Origin (lowest box corner), cell edge and number of the non-degenerate faces."""
     n_ok = 0
     total = 0.0
@@ -236,14 +225,14 @@ def _grid_frame(lo, ok, side):
             n_ok += 1
             total += side[f]
             for d in range(3):
-                origin[d] = min(origin[d], lo[f, d])
+                origin[d] = min(origin[d], box[f, d])
     # cell edge: the mean of the boxes' largest side, so a face covers a few cells
     h = total / n_ok if n_ok > 0 and total > 0.0 else 1.0
     return origin, h, n_ok
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _key_range(lo, hi, ok, origin, h, inv_h, keys, cell, count, start, stop):
+def _key_range(box, ok, origin, h, inv_h, keys, cell, count, start, stop):
     """For the non-degenerate faces ``start`` to ``stop``: the ranges of grid cells their boxes cover (lowest x,
     y, z, then highest), the number of these cells (in ``count[f + 1]``) and, when ``keys`` has entries, the
     Morton keys of their lowest cells."""
@@ -252,17 +241,18 @@ def _key_range(lo, hi, ok, origin, h, inv_h, keys, cell, count, start, stop):
         if ok[f]:
             if with_keys:
                 keys[f] = _morton(
-                    int((lo[f, 0] - origin[0]) / h), int((lo[f, 1] - origin[1]) / h), int((lo[f, 2] - origin[2]) / h)
+                    int((box[f, 0] - origin[0]) / h), int((box[f, 1] - origin[1]) / h), int((box[f, 2] - origin[2]) / h)
                 )
             for d in range(3):
-                cell[f, d] = int((lo[f, d] - origin[d]) * inv_h)
-                cell[f, 3 + d] = int((hi[f, d] - origin[d]) * inv_h)
+                cell[f, d] = int((box[f, d] - origin[d]) * inv_h)
+                cell[f, 3 + d] = int((box[f, 3 + d] - origin[d]) * inv_h)
             count[f + 1] = (cell[f, 3] - cell[f, 0] + 1) * (cell[f, 4] - cell[f, 1] + 1) * (cell[f, 5] - cell[f, 2] + 1)
 
 
 def _face_boxes(points: np.ndarray, faces: np.ndarray, order: np.ndarray | None = None, *,
                 keys: bool = False) -> tuple:
-    """The faces in ``order`` (by default as given) (F, 3), their boxes (F, 3) twice, whether they are
+    """The faces in ``order`` (by default as given) (F, 3), their boxes (F, 6) (lowest then highest corner, the
+    row a pair test reads), whether they are
     non-degenerate (F,), Morton keys (F,) (with ``keys``, else none), the number of non-degenerate faces, the
     range of grid cells every box covers (F, 6) (set for non-degenerate faces) and the first grid entry of
     every face (F + 1,) (the cumulated numbers of cells the boxes cover, none for degenerate faces)."""
@@ -270,43 +260,47 @@ def _face_boxes(points: np.ndarray, faces: np.ndarray, order: np.ndarray | None 
     if order is None:
         order = np.arange(n)
     local = np.empty_like(faces)
-    lo = np.empty((n, 3))
-    hi = np.empty((n, 3))
+    box = np.empty((n, 6))
     ok = np.empty(n, np.bool_)
     side = np.empty(n)
-    for_ranges(_box_range, n, points, faces, order, local, lo, hi, ok, side)
-    origin, h, n_ok = _grid_frame(lo, ok, side)
+    for_ranges(_box_range, n, points, faces, order, local, box, ok, side)
+    origin, h, n_ok = _grid_frame(box, ok, side)
     morton = np.zeros(n if keys else 0, np.int64)
     cell = np.empty((n, 6), np.int64)  # rows of degenerate faces stay unset: never read
     offset = np.zeros(n + 1, np.int64)
-    for_ranges(_key_range, n, lo, hi, ok, origin, h, 1.0 / h, morton, cell, offset)
+    for_ranges(_key_range, n, box, ok, origin, h, 1.0 / h, morton, cell, offset)
     np.cumsum(offset, out=offset)
-    return local, lo, hi, ok, morton, n_ok, cell, offset
+    return local, box, ok, morton, n_ok, cell, offset
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _bucket_range(cell, ok, offset, size, bucket, start, stop):
-    """Buckets (:func:`_hash`) of the grid entries of faces ``start`` to ``stop`` (every cell their boxes cover, in
-    x, y, z loop order), from ``offset[f]`` on."""
+def _bucket_range(cell, ok, query, offset, size, shift, bucket, keys, start, stop):
+    """Buckets and keys of the grid entries of faces ``start`` to ``stop`` (every cell their boxes cover, in x, y, z
+    loop order), from ``offset[f]`` on. The bucket of a cell is the low ``shift`` bits of its Morton code (``size``
+    = 2 ** ``shift`` >= 16); the key holds the bits above them from bit 4 on (with the bucket, the cell) and flags
+    in bits 0-3 (bits 0-2: the cell is the face's lowest along x, y, z; bit 3: ``query`` holds for the face)."""
     mask = size - 1
     for f in range(start, stop):
         if not ok[f]:
             continue
         k = offset[f]
-        for ix in range(cell[f, 0], cell[f, 3] + 1):
+        queried = 8 if query[f] else 0
+        x0, y0, z0 = cell[f, 0], cell[f, 1], cell[f, 2]
+        for ix in range(x0, cell[f, 3] + 1):
             sx = _spread(ix)
-            for iy in range(cell[f, 1], cell[f, 4] + 1):
+            for iy in range(y0, cell[f, 4] + 1):
                 sy = _spread(iy)
-                for iz in range(cell[f, 2], cell[f, 5] + 1):
-                    bucket[k] = _interleave(sx, sy, _spread(iz)) & mask  # _hash, the spreads once per row
+                for iz in range(z0, cell[f, 5] + 1):
+                    code = _interleave(sx, sy, _spread(iz))  # _morton, the spreads once per row
+                    bucket[k] = code & mask
+                    keys[k] = ((code >> shift) << 4) | queried | (ix == x0) | ((iy == y0) << 1) | ((iz == z0) << 2)
                     k += 1
 
 
 @njit(cache=True, error_model="numpy")
-def _bucket_fill(cell, ok, query, bucket, size):
-    """The grid entries grouped by bucket (``bucket``: each entry's, in face and loop order; stable): bucket starts
-    (size + 1,), faces, packed cell keys and flags (bits 0-2: the cell is the face's lowest along x, y, z; bit 3:
-    the face is queried)."""
+def _bucket_fill(offset, bucket, keys, size):
+    """The grid entries grouped by bucket (``bucket``, ``keys``: each entry's, in face and loop order, the entries
+    of face f from ``offset[f]`` to ``offset[f + 1]``; stable): bucket starts (size + 1,), faces and keys."""
     n = bucket.shape[0]
     start = np.zeros(size + 1, np.int64)
     for k in range(n):
@@ -316,33 +310,26 @@ def _bucket_fill(cell, ok, query, bucket, size):
     fill = start[:-1].copy()
     entries = np.empty(n, np.int64)
     cells = np.empty(n, np.int64)
-    flags = np.empty(n, np.int8)
-    k = 0
-    for f in range(cell.shape[0]):
-        if not ok[f]:
-            continue
-        queried = 8 if query[f] else 0
-        x0, y0, z0, x1, y1, z1 = cell[f, 0], cell[f, 1], cell[f, 2], cell[f, 3], cell[f, 4], cell[f, 5]
-        for ix in range(x0, x1 + 1):
-            for iy in range(y0, y1 + 1):
-                for iz in range(z0, z1 + 1):
-                    i = fill[bucket[k]]
-                    entries[i] = f
-                    cells[i] = _key(ix, iy, iz)
-                    flags[i] = queried | (1 if ix == x0 else 0) | (2 if iy == y0 else 0) | (4 if iz == z0 else 0)
-                    fill[bucket[k]] = i + 1
-                    k += 1
-    return start, entries, cells, flags
+    for f in range(offset.shape[0] - 1):
+        for k in range(offset[f], offset[f + 1]):
+            b = bucket[k]
+            i = fill[b]
+            entries[i] = f
+            cells[i] = keys[k]
+            fill[b] = i + 1
+    return start, entries, cells
 
 
 def _build_grid(cell: np.ndarray, offset: np.ndarray, ok: np.ndarray, query: np.ndarray, size: int) -> tuple:
-    """Spatial hash of ``size`` buckets: the non-degenerate faces covering each bucket's cells (ranges ``cell``
-    (F, 6), first entries ``offset`` (F + 1,)), in face order, with each entry's packed cell key and flags
-    (bits 0-2: the cell is the face's lowest along x, y, z; bit 3: ``query`` (F,) holds for the face)."""
+    """Spatial hash of ``size`` buckets (:func:`_table_size`): the non-degenerate faces covering each bucket's
+    cells (ranges ``cell`` (F, 6), first entries ``offset`` (F + 1,)), in face order, with each entry's key of
+    :func:`_bucket_range` (``query`` (F,) sets bit 3)."""
     n = cell.shape[0]
     bucket = np.empty(int(offset[-1]), np.int32 if size < 2**31 else np.int64)
-    for_ranges(_bucket_range, n, cell, ok, offset, size, bucket)  # the hashes, in parallel
-    return _bucket_fill(cell, ok, query, bucket, size)
+    keys = np.empty(int(offset[-1]), np.int64)
+    # the hashes and keys in parallel, the serial grouping only moves them
+    for_ranges(_bucket_range, n, cell, ok, query, offset, size, size.bit_length() - 1, bucket, keys)
+    return _bucket_fill(offset, bucket, keys, size)
 
 
 @njit(cache=True, error_model="numpy")
@@ -356,19 +343,19 @@ def _shared_vertices(faces, f, g):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _hits_range(points, faces, box, start, entries, cells, flags, hits, first, last):
+def _hits_range(points, faces, box, start, entries, cells, hits, first, last):
     """Flag in ``hits`` the faces that meet a non-adjacent face, testing the pairs with a queried face in the
     cells of buckets ``first`` to ``last``, each pair in the first cell both boxes cover (the cell where, along
-    every axis, one of the two is lowest: the entries' flags together have all four bits); both faces of a hit
+    every axis, one of the two is lowest: the flags of the entries' keys together have all four bits); both faces
+    of a hit
     are flagged, another range may flag the same face, with the same value. ``box`` (F, 6): every face's lowest
     then highest corner, in one row."""
     for b in range(first, last):
         for i in range(start[b], start[b + 1] - 1):
             key = cells[i]
-            f_flags = flags[i]
             f = -1
             for j in range(i + 1, start[b + 1]):
-                if cells[j] != key or (f_flags | flags[j]) != 15:
+                if (cells[j] ^ key) >> 4 != 0 or (cells[j] | key) & 15 != 15:
                     continue  # another cell hashed here, the pair meets in an earlier cell, or neither is queried
                 if f < 0:  # the face's box and corners, read once a pair needs them
                     f = entries[i]
@@ -469,7 +456,7 @@ def _apart_by_a_plane(points, faces, f, g, shared):
 
 
 @njit(cache=True, error_model="numpy")
-def _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, f,
+def _face_box_pairs(points, faces, planes, box, group, query, cell, start, entries, cells, size, shift, f,
                     out, n_out):
     """Faces g whose boxes meet f's box, that share no edge with f, (with groups) are in another group, and
     that neither lies strictly on one side of the other's plane nor of a plane of :func:`_apart_by_a_plane`
@@ -481,20 +468,21 @@ def _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, en
     for ix in range(fx0, fx1 + 1):
         for iy in range(fy0, fy1 + 1):
             for iz in range(fz0, fz1 + 1):
-                b = _hash(ix, iy, iz, size)
-                key = _key(ix, iy, iz)
+                code = _morton(ix, iy, iz)
+                b = code & (size - 1)
+                key = code >> shift
                 for e in range(start[b], start[b + 1]):
                     g = entries[e]
                     # with a query: the pairs of queried faces f with any g, each pair once
                     if g == f or (g < f and (query.shape[0] == 0 or query[g])):
                         continue
-                    if cells[e] != key or (grouped and group[f] == group[g]):
+                    if cells[e] >> 4 != key or (grouped and group[f] == group[g]):
                         continue
                     # visit the pair only in the first cell both boxes cover
                     if max(fx0, cell[g, 0]) != ix or max(fy0, cell[g, 1]) != iy or max(fz0, cell[g, 2]) != iz:
                         continue
-                    if (lo[f, 0] > hi[g, 0] or lo[g, 0] > hi[f, 0] or lo[f, 1] > hi[g, 1] or lo[g, 1] > hi[f, 1]
-                            or lo[f, 2] > hi[g, 2] or lo[g, 2] > hi[f, 2]):
+                    if (box[f, 0] > box[g, 3] or box[g, 0] > box[f, 3] or box[f, 1] > box[g, 4]
+                            or box[g, 1] > box[f, 4] or box[f, 2] > box[g, 5] or box[g, 2] > box[f, 5]):
                         continue
                     shared = _shared_vertices(faces, f, g)
                     if shared > 1:
@@ -567,26 +555,28 @@ def _nearly_one_plane(planes, f, g):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _pair_range(points, faces, planes, lo, hi, todo, group, query, cell, start, entries, cells, size, first, last):
+def _pair_range(points, faces, planes, box, todo, group, query, cell, start, entries, cells, size, shift, first,
+                last):
     """The pairs of faces ``todo[first:last]`` (K, 2), face by face, in one pass: a face whose pairs overflow the
     buffer is searched again after the buffer has grown."""
     out = np.empty((max(16, (last - first) // 4), 2), np.int64)
     n = np.int64(0)
     for i in range(first, last):
         f = todo[i]
-        m = _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, f, out, n)
+        m = _face_box_pairs(points, faces, planes, box, group, query, cell, start, entries, cells, size, shift, f,
+                            out, n)
         if m > out.shape[0]:
             grown = np.empty((max(2 * out.shape[0], m), 2), np.int64)
             for j in range(n):  # element by element: an array slice assignment compiles numba's shape error
                 grown[j, 0], grown[j, 1] = out[j, 0], out[j, 1]
             out = grown
-            m = _face_box_pairs(points, faces, planes, lo, hi, group, query, cell, start, entries, cells, size, f,
-                                out, n)
+            m = _face_box_pairs(points, faces, planes, box, group, query, cell, start, entries, cells, size, shift,
+                                f, out, n)
         n = m
     return out[:n]
 
 
-def _box_pairs(points, faces, planes, lo, hi, ok, group, query, cell, start, entries, cells, size) -> np.ndarray:
+def _box_pairs(points, faces, planes, box, ok, group, query, cell, start, entries, cells, size) -> np.ndarray:
     """All face pairs (f < g) of :func:`candidate_pairs`, grouped by the queried face (by f without a query):
     (K, 2)."""
     parts = {}
@@ -596,14 +586,15 @@ def _box_pairs(points, faces, planes, lo, hi, ok, group, query, cell, start, ent
 
     # the usable (queried) faces, ascending, split evenly between the threads
     todo = np.flatnonzero(ok if query.shape[0] == 0 else ok & query)
-    for_ranges(part, len(todo), points, faces, planes, lo, hi, todo, group, query, cell, start, entries, cells,
-               size, min_items=HEAVY_ITEMS_PER_RANGE)
+    for_ranges(part, len(todo), points, faces, planes, box, todo, group, query, cell, start, entries, cells,
+               size, size.bit_length() - 1, min_items=HEAVY_ITEMS_PER_RANGE)
     return parts[0] if len(parts) == 1 else np.concatenate([parts[first] for first in sorted(parts)])
 
 
 @njit(cache=True, error_model="numpy")
-def _near_query(lo, hi, ok, query):
-    """``ok`` (F,) narrowed to the faces whose boxes (``lo``, ``hi`` (F, 3)) meet the box around the queried
+def _near_query(box, ok, query):
+    """``ok`` (F,) narrowed to the faces whose boxes (``box`` (F, 6): lowest then highest corner) meet the box
+    around the queried
     usable faces (only they can meet a queried face), and its count; none when no usable face is queried."""
     top = np.full(3, -np.inf)
     bottom = np.full(3, np.inf)
@@ -612,15 +603,15 @@ def _near_query(lo, hi, ok, query):
         if ok[f] and query[f]:
             queried = True
             for d in range(3):
-                top[d] = max(top[d], hi[f, d])
-                bottom[d] = min(bottom[d], lo[f, d])
+                top[d] = max(top[d], box[f, 3 + d])
+                bottom[d] = min(bottom[d], box[f, d])
     near = np.zeros(ok.shape[0], np.bool_)
     n = 0
     if not queried:
         return near, n
     for f in range(ok.shape[0]):
-        if (ok[f] and lo[f, 0] <= top[0] and hi[f, 0] >= bottom[0] and lo[f, 1] <= top[1] and hi[f, 1] >= bottom[1]
-                and lo[f, 2] <= top[2] and hi[f, 2] >= bottom[2]):
+        if (ok[f] and box[f, 0] <= top[0] and box[f, 3] >= bottom[0] and box[f, 1] <= top[1]
+                and box[f, 4] >= bottom[1] and box[f, 2] <= top[2] and box[f, 5] >= bottom[2]):
             near[f] = True
             n += 1
     return near, n
@@ -669,15 +660,15 @@ def candidate_pairs(points, faces, *, group=None, query=None) -> np.ndarray:
     wanted = np.zeros(0, bool) if query is None else np.asarray(query, dtype=bool)
     if query is not None and wanted.shape != (len(fcs),):
         raise ValueError(f"query must have shape ({len(fcs)},); got {wanted.shape}")
-    _, lo, hi, ok, _, n_ok, cell, offset = _face_boxes(pts, fcs)
+    _, box, ok, _, n_ok, cell, offset = _face_boxes(pts, fcs)
     if query is not None and n_ok:
-        ok, n_ok = _near_query(lo, hi, ok, wanted)
+        ok, n_ok = _near_query(box, ok, wanted)
         offset = _entry_offsets(offset, ok)
     if n_ok == 0:
         return np.zeros((0, 2), np.int64)
     size = _table_size(n_ok)
-    start, entries, cells, _ = _build_grid(cell, offset, ok, ok, size)
-    return _box_pairs(pts, fcs, _face_planes(pts, fcs), lo, hi, ok, grp, wanted, cell, start, entries,
+    start, entries, cells = _build_grid(cell, offset, ok, ok, size)
+    return _box_pairs(pts, fcs, _face_planes(pts, fcs), box, ok, grp, wanted, cell, start, entries,
                       cells, size)
 
 
@@ -698,7 +689,7 @@ def spatial_order(points, faces) -> np.ndarray:
     numpy.ndarray, shape (F,), int64
     """
     pts, fcs = as_triangle_mesh(points, faces)
-    return np.argsort(_face_boxes(pts, fcs, keys=True)[4], kind="stable")
+    return np.argsort(_face_boxes(pts, fcs, keys=True)[3], kind="stable")
 
 
 def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
@@ -733,17 +724,19 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
     if order.min(initial=0) < 0 or order.max(initial=-1) >= len(fcs):
         raise ValueError(f"order must hold face indices below {len(fcs)}")
     # visit the faces in Morton order, so neighbours in space are near in memory
-    local, lo, hi, ok, _, n_ok, cell, offset = _face_boxes(pts, fcs, order)
+    local, box, ok, _, n_ok, cell, offset = _face_boxes(pts, fcs, order)
     hits = np.zeros(len(fcs), bool)
     local_query = q[order]
-    if query is not None and n_ok and not q.all():  # few faces near a local query (vertices moved in one place)
-        ok, n_ok = _near_query(lo, hi, ok, local_query)
+    # few faces near a local query (vertices moved in one place); the box around half the faces or more holds
+    # nearly all of them
+    if query is not None and n_ok and 2 * np.count_nonzero(q) < n_ok:
+        ok, n_ok = _near_query(box, ok, local_query)
         offset = _entry_offsets(offset, ok)
     if n_ok == 0:
         return hits
     size = _table_size(n_ok)
     grid = _build_grid(cell, offset, ok, local_query, size)
-    hits[order] = _count_hits(pts, local, np.concatenate((lo, hi), axis=1), grid, size)
+    hits[order] = _count_hits(pts, local, box, grid, size)
     return hits
 
 

@@ -25,7 +25,8 @@ import numpy as np
 from numba import njit
 
 from pverosion.kernels import _vec3 as v3
-from pverosion.kernels._threads import for_ranges
+from pverosion.kernels._scatter import CHUNKS, chunk_range
+from pverosion.kernels._threads import for_chunks, for_ranges
 from pverosion.kernels.mesh.topology import _incidence, edge_topology, one_ring
 
 __all__ = [
@@ -35,6 +36,7 @@ __all__ = [
     "collapse_short_edges",
     "plan_collapses",
     "short_edge_candidates",
+    "short_edges_and_mean_length",
 ]
 
 
@@ -260,6 +262,53 @@ def short_edge_candidates(points: np.ndarray, edges: np.ndarray, usable: np.ndar
                float(min_length), length)
     ids = np.flatnonzero(length < np.inf)
     return edges[ids[np.argsort(length[ids], kind="stable")]]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _edge_chunk(points, edges, usable, min_length, total, short, c):
+    """Chunk ``c`` of the edges: their summed length, in edge order, in ``total[c]`` (as
+    :func:`~pverosion.kernels.mesh.geometry.average_edge_length` sums it) and how many of them are usable and
+    shorter than ``min_length`` in ``short[c]``."""
+    lo, hi = chunk_range(edges.shape[0], c)
+    length = 0.0
+    n = 0
+    for e in range(lo, hi):
+        d = v3.norm(v3.sub(v3.row(points, edges[e, 0]), v3.row(points, edges[e, 1])))
+        length += d
+        n += usable[e] and d < min_length
+    total[c] = length
+    short[c] = n
+
+
+def short_edges_and_mean_length(points: np.ndarray, edges: np.ndarray, usable: np.ndarray,
+                                min_length: float) -> tuple[np.ndarray, float]:
+    """:func:`short_edge_candidates` and the mean edge length, from one pass over the edges.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3), float64
+    edges : numpy.ndarray, shape (E, 2), int64
+    usable : numpy.ndarray, shape (E,), bool
+    min_length : float
+
+    Returns
+    -------
+    candidates : numpy.ndarray, shape (K, 2), int64
+        As :func:`short_edge_candidates` returns them.
+    mean_length : float
+        Bit for bit :func:`~pverosion.kernels.mesh.geometry.average_edge_length` of ``points`` and ``edges``
+        (lengths summed in the same fixed chunks, so for any thread count).
+    """
+    total = np.empty(CHUNKS)
+    short = np.empty(CHUNKS, np.int64)
+    for_chunks(_edge_chunk, edges.shape[0], points, edges, usable, float(min_length), total, short)
+    length = 0.0
+    for c in range(CHUNKS):
+        length += float(total[c])
+    mean = length / max(edges.shape[0], 1)
+    if not short.any():  # most steps: no edge became short, and the pass is all there is
+        return np.zeros((0, 2), np.int64), mean
+    return short_edge_candidates(points, edges, usable, min_length), mean
 
 
 def plan_collapses(points: np.ndarray, faces: np.ndarray, candidates: np.ndarray, locked: np.ndarray, *,

@@ -57,9 +57,9 @@ from pverosion.kernels._scatter import CHUNKS, chunk_range
 from pverosion.kernels._threads import for_chunks, for_ranges
 from pverosion.kernels.curvature.operator import CurvatureOperator
 from pverosion.kernels.exact.intersection import intersecting_faces, spatial_order
-from pverosion.kernels.mesh.geometry import vertex_normals
+from pverosion.kernels.mesh.geometry import average_edge_length, vertex_normals
 from pverosion.kernels.mesh.orientation import ORIENTATIONS, orient_faces
-from pverosion.kernels.mesh.remesh import CollapseTopology, apply_collapses, plan_collapses, short_edge_candidates
+from pverosion.kernels.mesh.remesh import CollapseTopology, apply_collapses, plan_collapses, short_edges_and_mean_length
 from pverosion.kernels.solver.protocol import SolverLoop
 from pverosion.kernels.validation import as_triangle_mesh
 
@@ -106,16 +106,31 @@ def volume_area(points: np.ndarray, faces: np.ndarray, origin: np.ndarray) -> tu
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _moved_range(points, clean, source, faces, made, out, start, stop):
-    """Faces ``start`` to ``stop`` of :meth:`GuardedMeshSolver._moved_faces`: ``made`` or with a vertex not at its
-    place ``clean[source]`` of the restart point."""
+def _moved_vertex_range(points, clean, source, out, start, stop):
+    """Vertices ``start`` to ``stop``: not at their place ``clean[source]`` of the restart point."""
+    for v in range(start, stop):
+        s = source[v]
+        out[v] = points[v, 0] != clean[s, 0] or points[v, 1] != clean[s, 1] or points[v, 2] != clean[s, 2]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _moved_range(moved_vertex, faces, made, out, start, stop):
+    """Faces ``start`` to ``stop`` of :meth:`GuardedMeshSolver._moved_faces`: ``made`` or with a vertex
+    ``moved_vertex``."""
     for f in range(start, stop):
-        moved = made[f]
-        for t in range(3):
-            v = faces[f, t]
-            s = source[v]
-            moved = moved or points[v, 0] != clean[s, 0] or points[v, 1] != clean[s, 1] or points[v, 2] != clean[s, 2]
-        out[f] = moved
+        out[f] = made[f] | moved_vertex[faces[f, 0]] | moved_vertex[faces[f, 1]] | moved_vertex[faces[f, 2]]
+
+
+@njit(cache=True, error_model="numpy")
+def _grow_by_ring(ring_ptr, ring_idx, near):
+    """``near`` (V,) and every vertex with a one-ring neighbour (CSR ``ring_ptr``, ``ring_idx``) in it."""
+    grown = near.copy()
+    for v in range(near.shape[0]):
+        for k in range(ring_ptr[v], ring_ptr[v + 1]):
+            if near[ring_idx[k]]:
+                grown[v] = True
+                break
+    return grown
 
 
 @dataclass
@@ -223,6 +238,7 @@ class GuardedMeshSolver(SolverLoop):
         self._scale = np.ones(len(pts))  # displacement length factor per input vertex
         self._origin = pts.mean(axis=0)
         self._collapsed: tuple | None = None  # collapses that :meth:`_build_topology` follows instead of a rebuild
+        self._edge_mean: tuple = (None, None, 0.0)  # points and edges the last improvement measured, mean length
         self._build_topology()
         self.initial_normals = vertex_normals(self.points, self.faces, weighting="area")
         self._volume0 = self.volume()
@@ -305,9 +321,22 @@ class GuardedMeshSolver(SolverLoop):
         """Cumulative displacement (V',) of every current vertex into the input surface, along its input normal."""
         return -np.einsum("ij,ij->i", self.displacement, self.initial_normals[self.ids])
 
+    def _mean_edge_length(self) -> float:
+        """Mean edge length of the current mesh.
+
+        The last mesh improvement measured it in its pass over the edges when the points and edges it saw are
+        still :attr:`points` and the edges (the same arrays: every step and every change of the mesh makes new
+        ones; do not write into :attr:`points` in place).
+        """
+        points, edges, mean = self._edge_mean
+        if points is self.points and edges is self._edges:
+            return mean
+        return average_edge_length(self.points, self.faces, edges=self._edges)
+
     def _improve(self, min_length: float, *, movable: np.ndarray | None = None) -> None:
         """Collapse edges shorter than ``min_length`` (only between ``movable`` vertices (V',) when given)."""
-        candidates = short_edge_candidates(self.points, self._edges, self._usable, min_length)
+        candidates, mean = short_edges_and_mean_length(self.points, self._edges, self._usable, min_length)
+        self._edge_mean = (self.points, self._edges, mean)  # for the next step, unless a collapse changes the mesh
         if len(candidates) == 0:
             return
         locked = self._fixed | (self._scale[self.ids] == 0.0)
@@ -376,8 +405,10 @@ class GuardedMeshSolver(SolverLoop):
         if self._baseline:
             return None  # a self-intersecting input is always compared whole against its baseline
         source, made = self._since_clean
+        moved_vertex = np.empty(len(self.points), bool)
+        for_ranges(_moved_vertex_range, len(self.points), self.points, self._clean.points, source, moved_vertex)
         moved = np.empty(len(self.faces), bool)
-        for_ranges(_moved_range, len(self.faces), self.points, self._clean.points, source, self.faces, made, moved)
+        for_ranges(_moved_range, len(self.faces), moved_vertex, self.faces, made, moved)
         if moved.all():
             return None  # every face has a moved vertex
         return moved
@@ -435,15 +466,11 @@ class GuardedMeshSolver(SolverLoop):
     def _roll_back(self, hits: np.ndarray) -> None:
         """Restore the restart point after halving the steps of the vertices of the faces ``hits`` (F,) and of their
         two-ring neighbourhood."""
-        import scipy.sparse as sp  # on the first rollback only: the stage starts compiling without SciPy
-
-        near = np.zeros(len(self.points))
-        near[self.faces[hits].ravel()] = 1.0
+        near = np.zeros(len(self.points), bool)
+        near[self.faces[hits].ravel()] = True
         ring_ptr, ring_idx = self._ring
-        pattern = sp.csr_matrix((np.ones(len(ring_idx)), ring_idx, ring_ptr), shape=(len(near), len(near)))
-        near = near + pattern @ near
-        near = near + pattern @ near
-        ids = self.ids[near > 0]
+        near = _grow_by_ring(ring_ptr, ring_idx, _grow_by_ring(ring_ptr, ring_idx, near))
+        ids = self.ids[near]
         if not np.any(self._scale[ids] > 0.0):
             raise RuntimeError(
                 f"self-intersections appeared after step {self._clean.step} next to frozen vertices only; "

@@ -29,8 +29,6 @@ import numpy as np
 from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS, normalize_symmetric
 from pverosion.kernels.curvature.operator import MeanCurvatureOperator
 from pverosion.kernels.materials.erodibility import Erodibility, check_erodibility, erodibility_now
-from pverosion.kernels.mesh.geometry import average_edge_length
-from pverosion.kernels.mesh.laplacian import laplacian_vectors
 from pverosion.kernels.mesh.locality import locality_renumbering
 from pverosion.kernels.solver.mesh_evolution import GuardedMeshSolver, volume_area
 from pverosion.kernels.validation import as_triangle_mesh
@@ -91,8 +89,8 @@ class WeatheringSolver(GuardedMeshSolver):
         every current vertex to its input index as always.
     profile : dict or None
         Set it to ``{}`` to collect the seconds spent per part of each step
-        ("curvature", "laplacian", "displacement", "improvement" with the
-        statistics, "guard").
+        ("curvature", "displacement" with the direction, "improvement" with
+        the statistics and the next step's mean edge length, "guard").
 
     Examples
     --------
@@ -161,12 +159,9 @@ class WeatheringSolver(GuardedMeshSolver):
         curv = self._curvature(self.points)
         h = curv.mean
         clock = self._lap("curvature", clock)
-        if self.direction == "laplacian":
-            direction = laplacian_vectors(self.points, self.faces, ring=self._ring)
-        else:
-            direction = -curv.normals
-        clock = self._lap("laplacian", clock)
-        e_avg = average_edge_length(self.points, self.faces, edges=self._edges)
+        # the Laplacian of the vertices that move comes with their displacement
+        direction = None if self.direction == "laplacian" else -curv.normals
+        e_avg = self._mean_edge_length()
         factor = self._scale[self.ids]
         if self._erodibility is not None:
             factor *= erodibility_now(self._erodibility, self.points, self.ids)
@@ -174,8 +169,9 @@ class WeatheringSolver(GuardedMeshSolver):
             h_norm = normalize_symmetric(h)
         else:
             h_norm = normalize_symmetric(h, where=self._interior, always=True)
-        self.points = displace(self.points, direction, self.direction == "laplacian", h_norm, h,
-                                e_avg, self.power, e_avg / self.step_divisor, factor, self._fixed, self.displacement)
+        self.points = displace(self.points, direction, self.direction == "laplacian", h_norm, h, e_avg, self.power,
+                               e_avg / self.step_divisor, factor, self._fixed, self.displacement,
+                               ring=self._ring if direction is None else None)
         clock = self._lap("displacement", clock)
         if self.min_edge_ratio > 0.0:
             self._improve(self.min_edge_ratio * e_avg)
