@@ -13,7 +13,7 @@ from numba import njit
 
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._threads import for_ranges
-from pverosion.kernels.tolerances import FLAT_CURVATURE
+from pverosion.kernels.tolerances import FLAT_CURVATURE, ZERO_DIRECTION
 
 __all__ = ["displace"]
 
@@ -48,7 +48,12 @@ def _displace_range(points, direction, ring_ptr, ring_idx, unit, h_norm, h_raw, 
         vec = _ring_offset(points, ring_ptr, ring_idx, i) if along_ring else v3.row(direction, i)
         if unit:
             size = v3.norm(vec)
-            if size == 0.0:
+            # no direction: flatter than FLAT_CURVATURE, or within the rounding of the vertex's coordinates
+            reach = FLAT_CURVATURE * e_avg
+            for d in range(3):
+                noise = ZERO_DIRECTION * abs(points[i, d])
+                reach = noise if noise > reach else reach
+            if size <= reach:
                 continue
             vec = v3.scale(vec, 1.0 / size)
         # x ** 1.0 is x exactly: the default power skips the call of pow, the slowest part of the loop
