@@ -203,11 +203,14 @@ def _ply_record(data: np.ndarray, offset: int, layout) -> tuple[int, list[int], 
 
 
 def _read(path: Path) -> pv.DataObject:
-    """``pv.read`` with one ``ValueError`` naming the file for empty files, unknown formats and unreadable content.
+    """``pv.read`` with one ``ValueError`` naming the file for empty files, unknown formats and unreadable content,
+    and ``FileNotFoundError`` for a missing one.
 
     VTK's own error printout of a reader is switched off: the error reaches
     the caller once, as the exception.
     """
+    if not path.is_file():
+        raise FileNotFoundError(f"no such file: {path}")
     if path.stat().st_size == 0:
         raise ValueError(f"{path} is empty (0 bytes)")
     if path.suffix.lower() == ".ply":
@@ -237,8 +240,6 @@ def read_dataset(path: str | os.PathLike) -> pv.DataObject:
         give an empty dataset), or holds no points.
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"no such file: {path}")
     data = _read(path)
     if isinstance(data, pv.MultiBlock):
         empty = all(block is None or getattr(block, "n_points", 0) == 0 for block in data.recursive_iterator())
@@ -260,8 +261,6 @@ def read_image(path: str | os.PathLike) -> pv.ImageData:
         If the file does not hold an image.
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"no such file: {path}")
     data = _read(path)
     if not isinstance(data, pv.ImageData):
         raise ValueError(f"{path} holds a {type(data).__name__}, not an image on a regular grid")
@@ -289,8 +288,6 @@ def read_mesh(path: str | os.PathLike) -> pv.PolyData:
         If the file holds no surface.
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"no such file: {path}")
     data = _read(path)
     if isinstance(data, pv.ImageData):
         raise ValueError(f"{path} holds an image (a volume on a regular grid), not a surface; "
