@@ -512,8 +512,8 @@ def test_a_rollback_slows_down_exactly_the_two_ring_of_the_tangled_faces():
 
 def test_filled_holes_weather_alike_wherever_the_model_sits(bunny):
     """Hole filling puts vertices at the centroid of their ring: their Laplacian is within rounding of zero, no
-    direction. Moved 1000 units away, the model weathers as at the origin (main moved those vertices along their
-    rounding noise: 1.5e-4 apart after one step on a 0.16-unit model)."""
+    direction. Moved 1000 units away, the model weathers as at the origin (stepping along that rounding noise put
+    the two results 1.5e-4 apart after one step on this 0.16-unit model)."""
     import warnings
 
     from pverosion.meshing import fill_holes
