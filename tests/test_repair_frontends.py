@@ -328,3 +328,25 @@ def test_repair_keeps_a_small_part_far_from_the_rest():
     out = pverosion.repair(pv.PolyData.from_regular_faces(points, faces))
     assert out.n_cells == len(faces)
     assert out.volume == pytest.approx(large.volume + small.volume, rel=1e-9)
+
+
+@pytest.mark.parametrize("operation", ["repair", *OPERATIONS])
+def test_a_model_far_from_the_origin_gives_the_same_result_moved(sphere_a, sphere_b, operation):
+    """The outward check measures the enclosed volume about the model, not about the origin: two 2 mm balls
+    100 km from the origin (where a volume summed about the origin cancels to noise of either sign) give the
+    result of the balls at the origin, moved: the same faces, vertices within the rounding of the coordinates."""
+    shift = np.array([1e5, 1e5, 1e5])
+    small = [pv.PolyData.from_regular_faces(np.asarray(m.points, np.float64) * 1e-3, m.regular_faces)
+             for m in (sphere_a, sphere_b)]
+    moved = [pv.PolyData.from_regular_faces(np.asarray(m.points) + shift, m.regular_faces) for m in small]
+
+    def run(a, b):
+        if operation == "repair":
+            both = pv.PolyData.from_regular_faces(np.vstack([a.points, b.points]),
+                                                  np.vstack([a.regular_faces, b.regular_faces + a.n_points]))
+            return pverosion.repair(both)
+        return pverosion.boolean(a, b, operation)
+
+    near, far = run(*small), run(*moved)
+    np.testing.assert_array_equal(far.regular_faces, near.regular_faces)
+    np.testing.assert_allclose(np.asarray(far.points) - shift, near.points, rtol=0.0, atol=1e-9)

@@ -29,6 +29,7 @@ from vtkmodules.vtkCommonDataModel import vtkPolyData
 
 from pverosion.filters.base import ErosionFilter, Param, check_proper_faces, polydata_triangles, replace_triangles
 from pverosion.kernels.exact.intersection_curves import CASES
+from pverosion.kernels.mesh.geometry import signed_volume
 from pverosion.kernels.mesh.topology import boundary_edges
 from pverosion.kernels.repair.mesh_repair import (
     DEFAULT_TOLERANCE,
@@ -70,8 +71,7 @@ def _closed_operand(mesh, orientation: str, what: str) -> tuple[np.ndarray, np.n
                                "(merge duplicate points with .clean() or fill its holes first)")
     if orientation == "outward":
         faces = outward_parts(points, faces)
-    tri = points[faces]
-    volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0
+    volume = signed_volume(points, faces)  # about the centroid: far from the origin, about it the sum cancels
     if volume < 0.0:
         raise InvalidMeshError(f"{what} encloses a negative volume ({volume:.6g}): its faces point inward "
                                "(use orientation='outward' or reverse them)")
