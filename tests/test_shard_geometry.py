@@ -306,3 +306,22 @@ def test_bad_input_is_named():
     # without links= they are computed
     points, triangles, _ = cell_surfaces(graph, [0])
     assert _volume(points, triangles) == pytest.approx(graph.volume[0], rel=1e-9)
+
+
+def test_polygons_of_a_model_far_from_the_origin_match_its_links():
+    """Points computed from the cells' planes carry the rounding of their coordinates: a 20 cm torus 100 km from
+    the origin is triangulated as at the origin, every link's polygons summing to its area (the merge tolerance
+    had been 1e-9 of the box alone, finer than that rounding, and loops stayed open)."""
+    mesh = pv.ParametricTorus(ringradius=0.1, crosssectionradius=0.04, u_res=32, v_res=16).triangulate().clean()
+    seeds = _seeds_inside(mesh, 150, seed=3)
+    shift = np.full(3, 1e5)
+    points, faces = polydata_triangles(mesh)
+    for offset in (np.zeros(3), shift):
+        graph = build_shards(seeds + offset, np.asarray(points, np.float64) + offset, faces)
+        links = link_polygons(graph)
+        p = links.points - offset
+        t = links.triangles
+        area = 0.5 * np.linalg.norm(np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]), axis=1)
+        per_link = np.bincount(links.triangle_link, area, minlength=graph.n_links)
+        assert links.issues == 0
+        np.testing.assert_allclose(per_link, graph.link_area, rtol=0.0, atol=1e-6 * graph.link_area.max())

@@ -755,7 +755,8 @@ def link_polygons(graph: ShardGraph, *, tolerance: float = 1e-9) -> LinkMesh:
         From :func:`~pverosion.kernels.shards.graph.build_shards`.
     tolerance : float, default 1e-9
         Points closer than ``tolerance`` times the largest extent of the
-        Voronoi box are one point (boundary loops are chained and the faces
+        Voronoi box, or than 256 units in the last place of its largest
+        coordinate, are one point (boundary loops are chained and the faces
         of neighbouring links joined with it).
 
     Returns
@@ -788,7 +789,9 @@ def link_polygons(graph: ShardGraph, *, tolerance: float = 1e-9) -> LinkMesh:
     n_cells, n_links = graph.n_cells, graph.n_links
     lo, hi = (np.asarray(b, dtype=np.float64) for b in graph.box)
     extent = float((hi - lo).max())
-    tol = tolerance * extent
+    # far from the origin the points computed from planes carry the rounding of their coordinates: never merge
+    # more finely than that (256 units in the last place of the largest coordinate)
+    tol = max(tolerance * extent, 256.0 * np.finfo(np.float64).eps * float(np.abs(np.concatenate([lo, hi])).max()))
     seeds = np.ascontiguousarray(graph.input_seeds, dtype=np.float64)
     start, order, dims, size = seed_grid(seeds, lo, hi)
     index = TriangleIndex.build(graph.mesh_points, graph.mesh_faces)
