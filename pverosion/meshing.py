@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pyvista as pv
 from matplotlib.path import Path as Polygon
+from scipy import sparse
+from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
 from pverosion.kernels.mesh.topology import edge_topology
@@ -97,7 +99,7 @@ def _hole_patch(rim: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     The rim is projected on its best-fitting plane, filled with a triangular
     lattice at the rim's mean edge length and triangulated (constrained
     Delaunay); the
-    new points then relax to the average of their neighbours (a membrane).
+    new points then sit at the average of their neighbours (a membrane, solved exactly).
     A rim lying in a coordinate plane gets a patch exactly in that plane.
 
     Raises
@@ -134,20 +136,44 @@ def _hole_patch(rim: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     tri = tri[polygon.contains_points(np.vstack([flat, lattice])[tri].mean(axis=1))]
     inner = centre + lattice @ axes[:2]
     if len(inner):
-        neighbours = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
-        neighbours = neighbours[neighbours[:, 0] >= k]
-        count = np.bincount(neighbours[:, 0] - k, minlength=len(inner))
-        for _ in range(100):
-            allpoints = np.vstack([rim, inner])
-            total = np.zeros_like(inner)
-            np.add.at(total, neighbours[:, 0] - k, allpoints[neighbours[:, 1]])
-            inner = total / count[:, None]
+        inner = _membrane(rim, tri, len(inner))
     in_plane = np.ptp(rim, axis=0) == 0.0  # a rim in a coordinate plane: keep the patch exactly in it
     inner[:, in_plane] = rim[0, in_plane]
     # the faces round the hole run a -> b along the rim; the patch must run b -> a
     forward = (((tri[:, 0] == 0) & (tri[:, 1] == 1)) | ((tri[:, 1] == 0) & (tri[:, 2] == 1))
                | ((tri[:, 2] == 0) & (tri[:, 0] == 1)))
     return inner, tri[:, ::-1] if forward.any() else tri
+
+
+def _membrane(rim: np.ndarray, tri: np.ndarray, n: int) -> np.ndarray:
+    """Inner points of a patch, each exactly at the mean of its one-ring (solved, not iterated).
+
+    Parameters
+    ----------
+    rim : numpy.ndarray, shape (k, 3)
+        The fixed rim points, vertices ``0 .. k-1`` of ``tri``.
+    tri : numpy.ndarray, shape (m, 3)
+        Consistently oriented patch triangles over the rim and the ``n`` inner vertices ``k .. k+n-1``.
+    n : int
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 3)
+        The solution of the uniform Laplace equation with the rim fixed: the
+        Laplacian of every inner point is zero up to rounding, so it gives no
+        direction wherever the model sits (an iterated relaxation leaves a
+        residual above the rounding of a model far from the origin).
+    """
+    k = len(rim)
+    edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])  # each inner ring edge once
+    edges = edges[edges[:, 0] >= k]
+    row, col = edges[:, 0] - k, edges[:, 1]
+    inside = col >= k
+    system = (sparse.diags(np.bincount(row, minlength=n).astype(np.float64))
+              - sparse.csr_matrix((np.ones(int(inside.sum())), (row[inside], col[inside] - k)), shape=(n, n)))
+    rhs = np.zeros((n, 3))
+    np.add.at(rhs, row[~inside], rim[col[~inside]])
+    return np.asarray(spsolve(system.tocsc(), rhs)).reshape(n, 3)
 
 
 def fill_holes(points, faces) -> tuple[np.ndarray, np.ndarray]:
