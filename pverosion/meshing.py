@@ -176,6 +176,32 @@ def _membrane(rim: np.ndarray, tri: np.ndarray, n: int) -> np.ndarray:
     return np.asarray(spsolve(system.tocsc(), rhs)).reshape(n, 3)
 
 
+def _canonical_rim(points: np.ndarray, loop: np.ndarray) -> tuple[np.ndarray, bool]:
+    """A hole's rim in an order that depends on its points only, and whether it runs against the boundary.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3)
+    loop : numpy.ndarray, shape (k,), int
+        The rim's vertices in boundary order, from any of them.
+
+    Returns
+    -------
+    loop : numpy.ndarray, shape (k,), int
+        The rim from its lexicographically smallest point, towards the
+        smaller of that point's two rim neighbours: the patch is the same
+        whatever the numbering of the vertices and faces and their winding.
+    backward : bool
+        True when that order runs against the boundary order.
+    """
+    rim = points[loop]
+    first = int(np.lexsort(rim.T[::-1])[0])
+    loop = np.roll(loop, -first)
+    after, before = points[loop[1]], points[loop[-1]]
+    backward = bool(tuple(before) < tuple(after))
+    return (np.concatenate([loop[:1], loop[:0:-1]]) if backward else loop), backward
+
+
 def fill_holes(points, faces) -> tuple[np.ndarray, np.ndarray]:
     """Close every hole of a triangle mesh with a patch of about its rim's edge length.
 
@@ -204,9 +230,10 @@ def fill_holes(points, faces) -> tuple[np.ndarray, np.ndarray]:
     new_points, new_faces = [pts], [fcs]
     count = len(pts)
     for loop in _boundary_loops(fcs, len(pts)):
+        loop, backward = _canonical_rim(pts, loop)
         inner, tri = _hole_patch(pts[loop])
         index = np.concatenate([loop, count + np.arange(len(inner))])
         new_points.append(inner)
-        new_faces.append(index[tri])
+        new_faces.append(index[tri[:, ::-1] if backward else tri])
         count += len(inner)
     return np.vstack(new_points), np.vstack(new_faces)

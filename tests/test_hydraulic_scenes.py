@@ -285,6 +285,43 @@ def test_fill_holes_puts_every_new_point_at_the_mean_of_its_ring():
     assert np.abs(laplacian).max() <= 1e-14 * np.ptp(filled_points, axis=0).max()
 
 
+def _rows_sorted(rows: np.ndarray) -> np.ndarray:
+    return rows[np.lexsort(rows.T[::-1])]
+
+
+@pytest.mark.parametrize("change", ["winding", "face_order", "vertex_order"])
+def test_fill_holes_patches_do_not_depend_on_numbering_or_winding(change):
+    """A patch is built from its rim's points alone: the same new points and triangles (as point triples) when
+    the faces are reversed or renumbered or the vertices renumbered (the rim had been followed from wherever the
+    boundary walk met it first, and renumbered faces gave the rock's cut top 432 new points instead of 436)."""
+    rock = load_rock(subdivisions=4)
+    faces = rock.regular_faces
+    kept = faces[np.asarray(rock.points)[faces][:, :, 2].max(axis=1) < 0.6]
+    used = np.unique(kept)
+    points, kept = np.asarray(rock.points)[used], np.searchsorted(used, kept)
+    rng = np.random.default_rng(7)
+    other_points, other_faces = points, kept
+    if change == "winding":
+        other_faces = kept[:, ::-1]
+    elif change == "face_order":
+        other_faces = kept[rng.permutation(len(kept))]
+    else:
+        order = rng.permutation(len(points))  # new vertex i is old vertex order[i]
+        other_points, other_faces = points[order], np.argsort(order)[kept]
+
+    def patch(p, f):
+        filled_points, filled_faces = fill_holes(p, f)
+        new = filled_points[len(p):]
+        triples = filled_points[filled_faces[len(f):]].reshape(-1, 9)
+        return new[np.lexsort(new.T[::-1])], triples
+
+    (new, triples), (other_new, other_triples) = patch(points, kept), patch(other_points, other_faces)
+    np.testing.assert_array_equal(other_new, new)
+    if change == "winding":
+        other_triples = other_triples.reshape(-1, 3, 3)[:, ::-1].reshape(-1, 9)
+    np.testing.assert_array_equal(_rows_sorted(other_triples), _rows_sorted(triples))
+
+
 def test_fill_holes_keeps_a_planar_patch_in_its_plane():
     cube = load_cube(resolution=6)
     faces = cube.regular_faces
