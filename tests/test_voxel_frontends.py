@@ -102,6 +102,16 @@ def test_bad_grids_and_options_are_named():
         pverosion.voxel_erosion(pv.Sphere())
 
 
+def test_an_absurd_source_speed_is_refused_by_the_work_check():
+    """A speed whose squared norm overflows (1e200 m/s) is named by the work check, not a ZeroDivisionError."""
+    from pverosion.limits import ResourceLimitError
+
+    grid = _meander_grid()
+    for speed in ("1e200,0,0", "1e308,0,0"):
+        with pytest.raises(ResourceLimitError, match="source_velocity"):
+            VoxelErosion(iterations=1, source_velocity=speed).run(grid)
+
+
 def test_function_accessor_and_cli_agree(tmp_path):
     grid = _meander_grid()
     out = pverosion.voxel_erosion(grid, iterations=3, source_velocity=(1.5, 0, 0))

@@ -315,11 +315,12 @@ OPERATIONS_PER_SUBSTEP = 200
 
 def _check_step_work(fluid: VoxelFluid, cells: int, dt: float) -> None:
     """Refuse a time step whose CFL substeps and diffusion passes would take effectively forever."""
-    h, speed = fluid.spacing, float(np.linalg.norm(fluid.source_velocity))
+    h, speed = fluid.spacing, math.hypot(*map(float, fluid.source_velocity))  # hypot: no overflow at 1e200
     # the substeps keep the fastest face under cfl cells: at least the source's speed and gravity's fall
     sub = min(math.sqrt(fluid.cfl * h / fluid.gravity) if fluid.gravity > 0 else math.inf,
               fluid.cfl * h / speed if speed > 0 else math.inf, dt)
-    substeps = math.ceil(dt / sub)
+    substeps = dt / sub if sub > 0 else math.inf  # sub underflows to 0 for an absurd source speed
+    substeps = math.ceil(substeps) if math.isfinite(substeps) else substeps
     option = "source_velocity" if speed > 0 and fluid.cfl * h / speed < dt else "time_step"
     check_work(float(cells) * substeps * OPERATIONS_PER_SUBSTEP, option=option,
                what=f"a time step of {dt:.3g} s in at least {substeps:.3g} CFL substeps over {cells} voxels")
