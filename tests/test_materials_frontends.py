@@ -38,6 +38,20 @@ def test_filter_builds_from_an_image_and_reports_agreement(tmp_path):
         MaterialsFromVolume(thresholds="low, high").run(image)
 
 
+def test_nan_scalars_and_cell_only_data_are_refused_by_name():
+    """A NaN voxel is in no material: refused, not silently put in material 0; cell data is named."""
+    image = _ball_image(8)
+    image["density"][5] = np.nan
+    before = image.copy()
+    with pytest.raises(ValueError, match="'density' has 1 NaN"):
+        MaterialsFromVolume(thresholds="0.2").run(image)
+    assert image == before
+    cells = pv.ImageData(dimensions=(8, 8, 8))
+    cells.cell_data["density"] = np.ones(cells.n_cells)
+    with pytest.raises(ValueError, match=r"no point scalars \(its cell arrays \['density'\]"):
+        MaterialsFromVolume(thresholds="0.2").run(cells)
+
+
 def test_fitted_tree_file_is_compact_and_resamples_alike(tmp_path):
     image = _ball_image()
     path = tmp_path / "fitted.json"
