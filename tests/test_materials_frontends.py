@@ -62,6 +62,22 @@ def test_fitted_tree_file_is_compact_and_resamples_alike(tmp_path):
     assert np.array_equal(resampled["material_id"], out["material_id"])
 
 
+def test_sampler_refuses_a_grid_whose_points_coincide_or_are_nowhere(tmp_path):
+    """Zero spacing puts every sample at one point, a NaN origin puts them nowhere: both refused by name."""
+    image = _ball_image(8)
+    path = tmp_path / "t.json"
+    MaterialsFromVolume(thresholds="0.2", tree_file=str(path)).run(image)
+    flat = pv.ImageData(dimensions=(8, 8, 8))
+    flat.SetSpacing(0.0, 0.0, 0.0)
+    lost = pv.ImageData(dimensions=(8, 8, 8))
+    lost.SetOrigin(np.nan, 0.0, 0.0)
+    for grid in (flat, lost):
+        with pytest.raises(ValueError, match="finite origin and a finite, non-zero spacing"):
+            MaterialSampler(tree_file=str(path)).run(grid)
+    thin = pv.ImageData(dimensions=(1, 8, 8), spacing=(0.0, 0.25, 0.25), origin=(0.0, -1.0, -1.0))
+    assert pv.wrap(MaterialSampler(tree_file=str(path)).run(thin))["material_id"].size == 64  # one slice: fine
+
+
 @pytest.mark.parametrize("method", ["complete", "fitted"])
 def test_tree_file_keeps_its_volume_and_a_grid_outside_it_is_refused(tmp_path, method):
     image = _ball_image()

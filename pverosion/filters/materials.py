@@ -191,6 +191,10 @@ class MaterialSampler(ErosionFilter):
         """Sample the field at the grid of ``inp`` into ``out``."""
         if inp.GetNumberOfPoints() == 0:
             raise ValueError("the grid is empty: it has no points to sample at")
+        dims, origin, spacing = (np.array(get()) for get in (inp.GetDimensions, inp.GetOrigin, inp.GetSpacing))
+        if not (np.all(np.isfinite(origin)) and np.all(np.isfinite(spacing))) or np.any((spacing == 0) & (dims > 1)):
+            raise ValueError(f"the grid needs a finite origin and a finite, non-zero spacing; got origin "
+                             f"{tuple(origin.tolist())}, spacing {tuple(spacing.tolist())}")
         field = self._current_field()
         domain = getattr(getattr(field, "tree", None), "domain", None)
         if domain is not None:
