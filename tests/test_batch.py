@@ -144,6 +144,19 @@ def test_cli_reports_a_malformed_scenario(tmp_path, capsys):
     assert "unknown stage 'wether'" in capsys.readouterr().err
 
 
+def test_a_folder_a_binary_file_or_json_as_the_scenario_is_named(tmp_path):
+    """Each is refused with what it is, not as a missing file or a bare UnicodeDecodeError."""
+    with pytest.raises(ScenarioError, match="is a folder, not a scenario file"):
+        load_scenario(tmp_path)
+    binary = tmp_path / "mesh.stl"
+    binary.write_bytes(bytes(range(256)))
+    with pytest.raises(ScenarioError, match="mesh.stl: not a TOML scenario"):
+        load_scenario(binary)
+    as_json = _write(tmp_path, '{"input": {"example": "rock"}}', "scenario.json")
+    with pytest.raises(ScenarioError, match="not valid TOML.*scenario files are TOML"):
+        load_scenario(as_json)
+
+
 @pytest.mark.parametrize("where", ["file", "under_a_file"])
 def test_an_output_folder_that_cannot_be_made_is_refused_before_any_job(tmp_path, capsys, where):
     good = _write(tmp_path, '[input]\nexample = "rock"\n[[stages]]\nstage = "curvature"\n', "good.toml")
