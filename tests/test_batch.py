@@ -157,6 +157,14 @@ def test_a_folder_a_binary_file_or_json_as_the_scenario_is_named(tmp_path):
         load_scenario(as_json)
 
 
+def test_a_scenario_seed_too_large_for_a_stage_fails_before_any_job():
+    """The scenario's seed fills the stages' seed options: it is checked as theirs, not found at run time."""
+    text = 'seed = 99999999999999999999\n[input]\nexample = "rock"\n[[stages]]\nstage = "hydraulic"\n'
+    with pytest.raises(ScenarioError, match=r"seed \(the default of \[\[stages\]\] #1 \(hydraulic\)\).*64-bit"):
+        parse_scenario(text)
+    assert parse_scenario(text.replace("99999999999999999999", "7")).jobs[0].stages[0]["options"]["seed"] == 7
+
+
 @pytest.mark.parametrize("where", ["file", "under_a_file"])
 def test_an_output_folder_that_cannot_be_made_is_refused_before_any_job(tmp_path, capsys, where):
     good = _write(tmp_path, '[input]\nexample = "rock"\n[[stages]]\nstage = "curvature"\n', "good.toml")

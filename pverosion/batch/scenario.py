@@ -387,5 +387,5 @@ def _stage_options(cls: type[ErosionFilter], table: dict, *, seed: int, base: Pa
             raise ScenarioError(f"{where} {key}: give a plain file name; it is written into the job's folder")
         options[key] = value
     if "seed" not in options and any(p.name == "seed" for p in cls.PARAMS):
-        options["seed"] = seed
+        options["seed"] = _check(cls.param("seed"), seed, f"seed (the default of {where})")
     return options
