@@ -165,6 +165,20 @@ def test_a_scenario_seed_too_large_for_a_stage_fails_before_any_job():
     assert parse_scenario(text.replace("99999999999999999999", "7")).jobs[0].stages[0]["options"]["seed"] == 7
 
 
+def test_a_local_cluster_too_large_or_zero_threads_is_refused_before_anything(tmp_path, monkeypatch):
+    """100000 workers would start 100000 processes (the run hung); 0 threads per job silently meant the default."""
+    from pverosion.limits import ResourceLimitError
+
+    path = _write(tmp_path, '[input]\nexample = "rock"\nsubdivisions = 1\n[[stages]]\nstage = "curvature"\n')
+    monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "4G")
+    with pytest.raises(ResourceLimitError, match="workers: a local cluster of 100000 worker processes"):
+        run_batch(path, tmp_path / "out", workers=100_000, progress=False)
+    for threads in (0, -1):
+        with pytest.raises(ValueError, match="threads_per_job must be >= 1"):
+            run_batch(path, tmp_path / "out", serial=True, threads_per_job=threads, progress=False)
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.parametrize("where", ["file", "under_a_file"])
 def test_an_output_folder_that_cannot_be_made_is_refused_before_any_job(tmp_path, capsys, where):
     good = _write(tmp_path, '[input]\nexample = "rock"\n[[stages]]\nstage = "curvature"\n', "good.toml")
