@@ -54,6 +54,39 @@ def test_volume_threshold_and_cubic_voxels():
         voxel_grid_from_volume(image, threshold=1.0)
 
 
+def test_grid_builders_refuse_bad_sizes_and_no_data_before_allocating(monkeypatch):
+    """Tiny spacings were a MemoryError, zero an OverflowError, NaN heights or thresholds passed or failed unnamed."""
+    from pverosion.filters.voxel import voxel_grid
+    from conftest import DATA
+
+    from pverosion.limits import ResourceLimitError
+
+    monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "1G")
+    dem = pv.read(DATA / "SainteHelens.dem")
+    with pytest.raises(ResourceLimitError, match="spacing: a voxel grid of .* voxels"):
+        voxel_grid_from_height_field(dem, spacing=1e-3)
+    for spacing in (0, -30.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="spacing must be a finite number > 0"):
+            voxel_grid_from_height_field(dem, spacing=spacing)
+    with pytest.raises(ValueError, match="1 NaN or infinite height"):
+        voxel_grid_from_height_field(np.array([[1.0, np.nan], [1.0, 1.0]]), spacing=1.0)
+    with pytest.raises(ResourceLimitError, match="spacing, padding"):
+        voxel_grid_from_mesh(pv.Sphere(), spacing=1e-5)
+    with pytest.raises(ValueError, match="padding must be an integer >= 0"):
+        voxel_grid_from_mesh(pv.Sphere(), spacing=0.1, padding=-5)
+    image = pv.ImageData(dimensions=(4, 4, 4))
+    image["v"] = np.arange(64.0)
+    with pytest.raises(ValueError, match="threshold must be finite"):
+        voxel_grid_from_volume(image, threshold=np.nan)
+    with pytest.raises(ValueError, match="threshold 1e\\+09 leaves no material: the volume's values are 0..63"):
+        voxel_grid_from_volume(image, threshold=1e9)
+    image["v"][3] = np.nan
+    with pytest.raises(ValueError, match="1 NaN value"):
+        voxel_grid_from_volume(image, threshold=10)
+    with pytest.raises(ValueError, match="origin must be finite"):
+        voxel_grid(np.ones((3, 3, 3)), origin=(np.nan, 0.0, 0.0))
+
+
 @pytest.mark.parametrize("method", ["flying_edges", "marching_cubes"])
 def test_extracted_surfaces_are_closed_outward_and_agree(method):
     grid = _meander_grid()
