@@ -78,6 +78,22 @@ def test_sampler_refuses_a_grid_whose_points_coincide_or_are_nowhere(tmp_path):
     assert pv.wrap(MaterialSampler(tree_file=str(path)).run(thin))["material_id"].size == 64  # one slice: fine
 
 
+def test_sample_materials_checks_the_grid_it_builds(tmp_path, monkeypatch):
+    """A huge grid was a MemoryError, 2.7 points were truncated to 2, NaN bounds failed inside PyVista."""
+    from pverosion.limits import ResourceLimitError
+
+    path = tmp_path / "t.json"
+    MaterialsFromVolume(thresholds="0.2", tree_file=str(path)).run(_ball_image(8))
+    monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "1G")
+    with pytest.raises(ResourceLimitError, match="dimensions: sampling 100000 x 100000 x 100000 points"):
+        pverosion.sample_materials(str(path), dimensions=(100_000, 100_000, 100_000))
+    with pytest.raises(ValueError, match="dimensions must be 3 positive integers"):
+        pverosion.sample_materials(str(path), dimensions=(2.7, 5, 5))
+    with pytest.raises(ValueError, match="bounds must be finite"):
+        pverosion.sample_materials(str(path), dimensions=(5, 5, 5), bounds=(-1, np.nan, -1, 1, -1, 1))
+    assert pverosion.sample_materials(str(path), dimensions=np.array([5, 5, 5])).dimensions == (5, 5, 5)
+
+
 @pytest.mark.parametrize("method", ["complete", "fitted"])
 def test_tree_file_keeps_its_volume_and_a_grid_outside_it_is_refused(tmp_path, method):
     image = _ball_image()

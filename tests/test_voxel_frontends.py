@@ -56,9 +56,9 @@ def test_volume_threshold_and_cubic_voxels():
 
 def test_grid_builders_refuse_bad_sizes_and_no_data_before_allocating(monkeypatch):
     """Tiny spacings were a MemoryError, zero an OverflowError, NaN heights or thresholds passed or failed unnamed."""
-    from pverosion.filters.voxel import voxel_grid
     from conftest import DATA
 
+    from pverosion.filters.voxel import voxel_grid
     from pverosion.limits import ResourceLimitError
 
     monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "1G")
