@@ -175,6 +175,16 @@ def _check_outputs(args: argparse.Namespace) -> None:
         if args.screenshot.resolve() == args.output.resolve():
             raise ValueError("--screenshot and -o name the same file")
         check_writable(args.screenshot, "--screenshot")
+    for param in filter_cls.PARAMS:  # files an option writes besides -o (materials --tree-file)
+        value = getattr(args, param.name) if param.path == "output" else ""
+        if not value:
+            continue
+        flag, written = "--" + param.name.replace("_", "-"), Path(value)
+        inputs = {("the input" if k == "file" else f"the input {k}"): v for k, v in _inputs(args).items()}
+        for name, given in {"-o": args.output, "--screenshot": args.screenshot, **inputs}.items():
+            if given is not None and _same_file(written, given):
+                raise ValueError(f"{flag} {written} names the same file as {name}; give it another name")
+        check_writable(written, flag)
     if not filter_cls.TIME_DEPENDENT:
         return
     if args.save_every is not None and args.save_every < 1:

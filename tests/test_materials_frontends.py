@@ -139,6 +139,22 @@ def test_cli_materials_writes_vti_tree_and_slices(tmp_path, capsys):
     assert "thresholds are required" in capsys.readouterr().err
 
 
+def test_cli_checks_the_tree_file_before_the_run(tmp_path, capsys):
+    """--tree-file naming the input overwrote the volume with JSON; under a file it failed after the run."""
+    path = tmp_path / "ball.vti"
+    _ball_image(8).save(path)
+    before = path.read_bytes()
+    (tmp_path / "plain").write_text("a file")
+    for tree, message in ((path, "names the same file as the input"),
+                          (tmp_path / "out.vti", "names the same file as -o"),
+                          (tmp_path / "plain" / "t.json", "plain is not a folder")):
+        assert main(["materials", str(path), "-o", str(tmp_path / "out.vti"), "--thresholds", "0.2",
+                     "--tree-file", str(tree)]) == 2
+        assert message in capsys.readouterr().err
+        assert not (tmp_path / "out.vti").exists()
+    assert path.read_bytes() == before
+
+
 def test_weathering_follows_the_hardness_of_the_16_cells():
     block, field, cell_of = sixteen_cell_block(seed=0)
 
