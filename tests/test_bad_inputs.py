@@ -199,7 +199,7 @@ CASES = {
     "mesh to materials": (["materials", "sphere.vtp", "-o", "out.vti", "--thresholds", "0.5"],
                           r"sphere.vtp holds a PolyData, not an image", None),
     "image without scalars to materials": (["materials", "empty.vti", "-o", "out.vti", "--thresholds", "0.5"],
-                                           r"no scalars", None),
+                                           r"no point scalars", None),
     "no such array": (["materials", "ramp.vti", "-o", "out.vti", "--thresholds", "0.5", "--array", "nosuch"],
                       r"no point array 'nosuch'",
                       lambda d: pverosion.materials_from_volume(pv.read(d / "ramp.vti"), [0.5], array="nosuch")),
