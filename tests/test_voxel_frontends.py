@@ -123,6 +123,10 @@ def test_bad_grids_and_options_are_named():
     grid = _meander_grid()
     with pytest.raises(ValueError, match="material_amount"):
         VoxelErosion(iterations=1).run(pv.ImageData(dimensions=(4, 4, 4)))
+    dem = pv.ImageData(dimensions=(4, 4, 1), spacing=(30.0, 30.0, 1.0))  # a DEM as read: heights, no material
+    dem["elevation"] = np.arange(16.0)
+    with pytest.raises(ValueError, match="'material_amount'.*voxel_grid_from_height_field \\(a DEM\\)"):
+        VoxelErosion(iterations=1).run(dem)
     with pytest.raises(ValueError, match="source_velocity needs 3 numbers"):
         VoxelErosion(iterations=1, source_velocity="1,0").run(grid)
     odd = grid.copy()

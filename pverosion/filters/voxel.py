@@ -58,7 +58,9 @@ def _grid_array(image, name: str, *, required: bool = False, default: float = 0.
     arr = image.GetPointData().GetArray(name)
     if arr is None:
         if required:
-            raise ValueError(f"the voxel grid needs a point array {name!r} (material per voxel in [0, 1])")
+            raise ValueError(f"the voxel grid needs a point array {name!r} (material per voxel in [0, 1]); build "
+                             "one with voxel_grid_from_volume (a scan), voxel_grid_from_height_field (a DEM) or "
+                             "voxel_grid_from_mesh in pverosion.filters.voxel")
         return np.full(dims, default)
     values = numpy_support.vtk_to_numpy(arr)
     if values.ndim != 1:
@@ -340,6 +342,7 @@ def voxel_solver(grid, *, params: ErosionParameters | None = None, source_veloci
     ValueError
         Non-cubic voxels, a missing ``material_amount``, bad ``hardness`` or ``source_velocity``.
     """
+    amount = _grid_array(grid, "material_amount", required=True)  # first: a raw scan or DEM lacks it
     spacing = np.array(grid.GetSpacing())
     if not (np.isclose(spacing[0], spacing[1]) and np.isclose(spacing[0], spacing[2])):
         raise ValueError(f"voxel erosion needs cubic voxels; the grid's spacing is {tuple(spacing.tolist())}")
@@ -350,7 +353,7 @@ def voxel_solver(grid, *, params: ErosionParameters | None = None, source_veloci
     if np.any(hardness <= 0) or not np.all(np.isfinite(hardness)):
         raise ValueError("hardness must be finite and > 0 everywhere")
     return VoxelErosionSolver(
-        _grid_array(grid, "material_amount", required=True), _grid_array(grid, "water"),
+        amount, _grid_array(grid, "water"),
         spacing=float(spacing[0]), erodibility=1.0 / hardness, params=params,
         source=_grid_array(grid, "source") != 0, source_velocity=velocity, drain=_grid_array(grid, "drain") != 0,
         **fluid_options,
