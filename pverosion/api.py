@@ -34,6 +34,7 @@ from pverosion.kernels.materials.field import (
     bsp_from_volume,
 )
 from pverosion.kernels.repair.mesh_repair import DEFAULT_TOLERANCE
+from pverosion.limits import check_memory
 
 __all__ = ["boolean", "curvature", "freeze_thaw", "hydraulic_erosion", "materials_from_volume", "repair",
            "sample_materials", "shard_graph", "voxel_erosion", "weather"]
@@ -199,6 +200,10 @@ _GRID = {"dimensions": ("tuple of int, default: (64, 64, 64)", "Grid points alon
          "bounds": ("tuple of float, default: (-1, 1, -1, 1, -1, 1)", "xmin, xmax, ymin, ymax, zmin, zmax.")}
 
 
+SAMPLE_BYTES_PER_POINT = 96
+"""Estimated memory per sampled grid point (coordinates, the tree's work arrays, the two output arrays)."""
+
+
 @stage_function(MaterialSampler, python_only=_GRID, omitted=("tree_file",))
 def sample_materials(
     field: MaterialField | str,
@@ -222,12 +227,17 @@ def sample_materials(
     pyvista.ImageData
         With ``material_id`` and ``hardness`` arrays.
     """
-    dims = np.asarray(dimensions, dtype=int)
-    box = np.asarray(bounds, dtype=float)
-    if dims.shape != (3,) or np.any(dims < 1):
+    given = list(dimensions) if isinstance(dimensions, Sequence | np.ndarray) else [dimensions]
+    if len(given) != 3 or not all(isinstance(n, int | np.integer) and not isinstance(n, bool) and n >= 1
+                                  for n in given):
         raise ValueError(f"dimensions must be 3 positive integers; got {dimensions!r}")
-    if box.shape != (6,) or np.any(box[1::2] < box[::2]):
-        raise ValueError(f"bounds must be (xmin, xmax, ymin, ymax, zmin, zmax) with min <= max; got {bounds!r}")
+    dims = np.array([int(n) for n in given], dtype=object)
+    box = np.asarray(bounds, dtype=float)
+    if box.shape != (6,) or not np.all(np.isfinite(box)) or np.any(box[1::2] < box[::2]):
+        raise ValueError(f"bounds must be finite (xmin, xmax, ymin, ymax, zmin, zmax) with min <= max; got {bounds!r}")
+    check_memory(float(np.prod(dims)) * SAMPLE_BYTES_PER_POINT, option="dimensions",
+                 what=f"sampling {' x '.join(map(str, dims))} points")
+    dims = dims.astype(np.int64)
     spacing = np.where(dims > 1, (box[1::2] - box[::2]) / np.maximum(dims - 1, 1), 1.0)
     grid = pv.ImageData(dimensions=dims.tolist(), origin=box[::2].tolist(), spacing=spacing.tolist())
     if isinstance(field, str):

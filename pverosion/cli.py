@@ -45,6 +45,20 @@ def _port_label(name: str) -> str:
     return name.removeprefix("Input") or name
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser that reads ``-1,0,0`` (numbers led by a negative one) as a value, not as an option.
+
+    Python 3.11's argparse takes only ``-1`` and ``-.5`` for negative numbers, so
+    ``--source-velocity -1,0,0`` failed with "expected one argument"; this is
+    the rule of Python 3.13 (an argument starting with ``-`` and a digit).
+    Subcommand parsers are of the same class.
+    """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-\.?\d")
+
+
 def build_parser(*, stages: Collection[str] | None = None) -> argparse.ArgumentParser:
     """The ``pverosion`` argument parser.
 
@@ -54,7 +68,7 @@ def build_parser(*, stages: Collection[str] | None = None) -> argparse.ArgumentP
         Stage subcommands to give their options (default: all); the others are
         listed by name only, so their filter modules are not imported.
     """
-    parser = argparse.ArgumentParser(prog="pverosion", description="Erosion simulation on 3D meshes and voxel fields.")
+    parser = _Parser(prog="pverosion", description="Erosion simulation on 3D meshes and voxel fields.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     demo = sub.add_parser("demo", help="weather a cube into a sphere; write the .pvd series and .png figures")
     demo.add_argument("-o", "--output-dir", type=Path, default=Path("pverosion_demo"),
@@ -161,6 +175,16 @@ def _check_outputs(args: argparse.Namespace) -> None:
         if args.screenshot.resolve() == args.output.resolve():
             raise ValueError("--screenshot and -o name the same file")
         check_writable(args.screenshot, "--screenshot")
+    for param in filter_cls.PARAMS:  # files an option writes besides -o (materials --tree-file)
+        value = getattr(args, param.name) if param.path == "output" else ""
+        if not value:
+            continue
+        flag, written = "--" + param.name.replace("_", "-"), Path(value)
+        inputs = {("the input" if k == "file" else f"the input {k}"): v for k, v in _inputs(args).items()}
+        for name, given in {"-o": args.output, "--screenshot": args.screenshot, **inputs}.items():
+            if given is not None and _same_file(written, given):
+                raise ValueError(f"{flag} {written} names the same file as {name}; give it another name")
+        check_writable(written, flag)
     if not filter_cls.TIME_DEPENDENT:
         return
     if args.save_every is not None and args.save_every < 1:

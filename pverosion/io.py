@@ -209,6 +209,8 @@ def _read(path: Path) -> pv.DataObject:
     VTK's own error printout of a reader is switched off: the error reaches
     the caller once, as the exception.
     """
+    if path.is_dir():
+        raise IsADirectoryError(f"{path} is a folder, not a file")
     if not path.is_file():
         raise FileNotFoundError(f"no such file: {path}")
     if path.stat().st_size == 0:

@@ -19,6 +19,7 @@ The limits are read from the environment on every check:
 
 from __future__ import annotations
 
+import math
 import os
 
 __all__ = ["ResourceLimitError", "check_memory", "check_work", "format_bytes", "memory_limit", "work_limit"]
@@ -89,6 +90,14 @@ def format_bytes(nbytes: float) -> str:
     return f"{value:.1f} PiB"  # pragma: no cover - the loop always returns
 
 
+def _as_float(value: float) -> float:
+    """``float(value)``, ``inf`` for an integer too large for a float (an estimate from a huge count)."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
+
+
 def check_memory(nbytes: float, *, option: str, what: str, remedy: str | None = None) -> None:
     """Refuse a request estimated to need ``nbytes`` bytes when that exceeds :func:`memory_limit`.
 
@@ -109,7 +118,8 @@ def check_memory(nbytes: float, *, option: str, what: str, remedy: str | None = 
         If the estimate exceeds the limit.
     """
     limit = memory_limit()
-    if not float(nbytes) <= limit:
+    nbytes = _as_float(nbytes)
+    if not nbytes <= limit:
         raise ResourceLimitError(
             f"{option}: {what} would need about {format_bytes(nbytes)}, more than the memory limit of "
             f"{format_bytes(limit)} (half the available memory unless PVEROSION_MEMORY_LIMIT is set); "
@@ -125,7 +135,8 @@ def check_work(operations: float, *, option: str, what: str) -> None:
         If the estimate exceeds the limit.
     """
     limit = work_limit()
-    if not float(operations) <= limit:
+    operations = _as_float(operations)
+    if not operations <= limit:
         raise ResourceLimitError(
             f"{option}: {what} would take about {float(operations):.3g} operations per step, more than the limit of "
             f"{limit:.3g} (PVEROSION_WORK_LIMIT); lower {option}, or raise PVEROSION_WORK_LIMIT")

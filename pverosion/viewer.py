@@ -518,6 +518,36 @@ class SeriesViewer(pv.Plotter):
         return path
 
 
+MOVIE_SUFFIXES = (".gif", ".mp4", ".mov", ".avi", ".mkv", ".webm", ".m4v")
+"""Movie formats :func:`record_movie` writes (GIF with Pillow, the others with ffmpeg)."""
+
+MAX_WINDOW = 16384
+"""Largest window or image side in pixels (the render buffer limit of common OpenGL drivers)."""
+
+
+def check_window_size(window_size) -> tuple[int, int]:
+    """``window_size`` as two ints, or ``ValueError`` unless both are pixel counts in 1..:data:`MAX_WINDOW`.
+
+    Checked before a window exists: a zero or negative size rendered an empty
+    image and a huge one ended the process in ``std::bad_alloc``.
+    """
+    size = tuple(window_size)
+    if len(size) != 2 or not all(isinstance(v, (int, np.integer)) and 1 <= v <= MAX_WINDOW for v in size):
+        raise ValueError(f"window size must be two pixel counts W H in 1..{MAX_WINDOW}; got {size}")
+    return int(size[0]), int(size[1])
+
+
+def check_movie_options(path: str | os.PathLike, fps: float) -> None:
+    """``ValueError`` for a movie file that is not a movie format, or a frame rate it cannot hold."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in MOVIE_SUFFIXES:
+        raise ValueError(f"a movie is written as {', '.join(MOVIE_SUFFIXES)}; got {os.fspath(path)!r}")
+    if not (isinstance(fps, (int, float, np.integer, np.floating)) and 0 < fps < float("inf")):
+        raise ValueError(f"fps must be > 0 and finite; got {fps!r}")
+    if suffix == ".gif" and fps > 100:
+        raise ValueError(f"a GIF's frame delays are in 1/100 s: fps must be <= 100; got {fps!r}")
+
+
 def view(data, *, scalars: str | None = None, step: int = 0, compare: tuple[int, int] | None = None,
          other=None, statistic: str | None = None, widgets: bool = True, off_screen: bool | None = None,
          window_size: tuple[int, int] = (1024, 768)) -> SeriesViewer:
@@ -552,6 +582,7 @@ def view(data, *, scalars: str | None = None, step: int = 0, compare: tuple[int,
     (2, 'mean_curvature')
     >>> plotter.close()
     """
+    window_size = check_window_size(window_size)
     if off_screen or (off_screen is None and pv.OFF_SCREEN):
         _offscreen_pyvista()
         off_screen = True
@@ -583,8 +614,7 @@ def record_movie(viewer: SeriesViewer, path: str | os.PathLike, *, fps: float = 
     pathlib.Path
     """
     path = Path(path)
-    if not fps > 0:
-        raise ValueError(f"fps must be > 0; got {fps!r}")
+    check_movie_options(path, fps)
     steps = list(range(len(viewer.series))) if steps is None else [int(s) for s in steps]
     if path.suffix.lower() != ".gif":
         try:
@@ -670,12 +700,17 @@ def run_view(args) -> int:
         from pverosion.io import read_mesh
         from pverosion.live import interactive
 
-        session = interactive(read_mesh(args.path), stage=args.live, window_size=tuple(args.window_size),
+        session = interactive(read_mesh(args.path), stage=args.live, window_size=check_window_size(args.window_size),
                               **({"gravity": args.gravity} if args.live == "hydraulic" else {}))
         session.start()
         session.plotter.show()
         session.stop()
         return 0
+    check_window_size(args.window_size)
+    if args.movie is not None:
+        check_movie_options(args.movie, args.fps)
+    if args.web is not None and not 0 <= args.web <= 65535:
+        raise ValueError(f"--web: a port is a number in 0..65535; got {args.web}")
     for out, flag in ((args.movie, "--movie"), (args.screenshot, "--screenshot"), (args.paraview_state,
                                                                                   "--paraview-state")):
         if out is not None:

@@ -199,7 +199,7 @@ CASES = {
     "mesh to materials": (["materials", "sphere.vtp", "-o", "out.vti", "--thresholds", "0.5"],
                           r"sphere.vtp holds a PolyData, not an image", None),
     "image without scalars to materials": (["materials", "empty.vti", "-o", "out.vti", "--thresholds", "0.5"],
-                                           r"no scalars", None),
+                                           r"no point scalars", None),
     "no such array": (["materials", "ramp.vti", "-o", "out.vti", "--thresholds", "0.5", "--array", "nosuch"],
                       r"no point array 'nosuch'",
                       lambda d: pverosion.materials_from_volume(pv.read(d / "ramp.vti"), [0.5], array="nosuch")),
@@ -287,9 +287,25 @@ def test_absurd_sizes_are_refused_before_anything_is_allocated(monkeypatch):
     with pytest.raises(ResourceLimitError, match=r"cells: the graph would need about 3.0 GiB.*PVEROSION_MEMORY_LIMIT"):
         check_memory(3 * 1024**3, option="cells", what="the graph")
     check_memory(1024**3, option="cells", what="the graph")
+    with pytest.raises(ResourceLimitError, match="inf PiB"):  # an estimate beyond a float is still refused
+        check_memory(10**400, option="cells", what="the graph")
     with pytest.raises(ValueError, match="PVEROSION_MEMORY_LIMIT must be a number of bytes"):
         monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "lots")
         memory_limit()
+
+
+@pytest.mark.parametrize("value, error, message", [
+    (float("inf"), ValueError, "iterations must be finite; got inf"),
+    (float("nan"), ValueError, "iterations must be finite; got nan"),
+    (2**63 - 1, ResourceLimitError, "iterations: the list of 9223372036854775808 time steps"),  # exact, not rounded
+    (2**63, ValueError, "iterations must be a 64-bit integer"),
+    (10**400, ValueError, "iterations must be a 64-bit integer"),
+    (2.5, TypeError, "iterations must be an integer; got 2.5"),
+], ids=["inf", "nan", "2**63-1", "2**63", "10**400", "2.5"])
+def test_non_finite_and_huge_counts_are_named(value, error, message):
+    """inf/NaN/a count beyond 64 bits each get the option's name, not an OverflowError or a wrong 'not an integer'."""
+    with pytest.raises(error, match=re.escape(message)):
+        pverosion.weather(pv.Sphere(), iterations=value)
 
 
 def test_output_times_are_lazy():

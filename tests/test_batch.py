@@ -144,6 +144,41 @@ def test_cli_reports_a_malformed_scenario(tmp_path, capsys):
     assert "unknown stage 'wether'" in capsys.readouterr().err
 
 
+def test_a_folder_a_binary_file_or_json_as_the_scenario_is_named(tmp_path):
+    """Each is refused with what it is, not as a missing file or a bare UnicodeDecodeError."""
+    with pytest.raises(ScenarioError, match="is a folder, not a scenario file"):
+        load_scenario(tmp_path)
+    binary = tmp_path / "mesh.stl"
+    binary.write_bytes(bytes(range(256)))
+    with pytest.raises(ScenarioError, match="mesh.stl: not a TOML scenario"):
+        load_scenario(binary)
+    as_json = _write(tmp_path, '{"input": {"example": "rock"}}', "scenario.json")
+    with pytest.raises(ScenarioError, match="not valid TOML.*scenario files are TOML"):
+        load_scenario(as_json)
+
+
+def test_a_scenario_seed_too_large_for_a_stage_fails_before_any_job():
+    """The scenario's seed fills the stages' seed options: it is checked as theirs, not found at run time."""
+    text = 'seed = 99999999999999999999\n[input]\nexample = "rock"\n[[stages]]\nstage = "hydraulic"\n'
+    with pytest.raises(ScenarioError, match=r"seed \(the default of \[\[stages\]\] #1 \(hydraulic\)\).*64-bit"):
+        parse_scenario(text)
+    assert parse_scenario(text.replace("99999999999999999999", "7")).jobs[0].stages[0]["options"]["seed"] == 7
+
+
+def test_a_local_cluster_too_large_or_zero_threads_is_refused_before_anything(tmp_path, monkeypatch):
+    """100000 workers would start 100000 processes (the run hung); 0 threads per job silently meant the default."""
+    from pverosion.limits import ResourceLimitError
+
+    path = _write(tmp_path, '[input]\nexample = "rock"\nsubdivisions = 1\n[[stages]]\nstage = "curvature"\n')
+    monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "4G")
+    with pytest.raises(ResourceLimitError, match="workers: a local cluster of 100000 worker processes"):
+        run_batch(path, tmp_path / "out", workers=100_000, progress=False)
+    for threads in (0, -1):
+        with pytest.raises(ValueError, match="threads_per_job must be >= 1"):
+            run_batch(path, tmp_path / "out", serial=True, threads_per_job=threads, progress=False)
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.parametrize("where", ["file", "under_a_file"])
 def test_an_output_folder_that_cannot_be_made_is_refused_before_any_job(tmp_path, capsys, where):
     good = _write(tmp_path, '[input]\nexample = "rock"\n[[stages]]\nstage = "curvature"\n', "good.toml")

@@ -95,3 +95,14 @@ def test_cli_warning_gets_a_line_of_its_own_under_a_progress_bar(capsys):
     # the bar's text is cleared (carriage return) before the warning, which ends its own line
     assert re.search(r"\rpverosion weather: warning: no water flows\n", err), err
     assert "3/10" in err and "6/10" in err
+
+
+def test_cli_reads_numbers_led_by_a_negative_one_as_a_value():
+    """``--source-velocity -1,0,0`` is the vector, not an unknown option (argparse 3.11 took only ``-1``)."""
+    from pverosion.cli import build_parser
+
+    args = build_parser(stages={"voxel"}).parse_args(
+        ["voxel", "in.vti", "-o", "out.vtm", "--source-velocity", "-1.5,0,-2e-1", "--iterations", "3"])
+    assert args.source_velocity == "-1.5,0,-2e-1" and args.iterations == 3
+    with pytest.raises(SystemExit):  # a real unknown option is still refused
+        build_parser(stages={"voxel"}).parse_args(["voxel", "in.vti", "-o", "out.vtm", "--bogus"])

@@ -49,3 +49,5 @@ def test_read_mesh_formats_and_errors(tmp_path):
     assert isinstance(read_mesh(tmp_path / "grid.vtu"), pv.PolyData)
     with pytest.raises(FileNotFoundError):
         read_mesh(tmp_path / "missing.ply")
+    with pytest.raises(IsADirectoryError, match="is a folder, not a file"):
+        read_mesh(tmp_path)

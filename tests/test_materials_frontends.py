@@ -38,6 +38,20 @@ def test_filter_builds_from_an_image_and_reports_agreement(tmp_path):
         MaterialsFromVolume(thresholds="low, high").run(image)
 
 
+def test_nan_scalars_and_cell_only_data_are_refused_by_name():
+    """A NaN voxel is in no material: refused, not silently put in material 0; cell data is named."""
+    image = _ball_image(8)
+    image["density"][5] = np.nan
+    before = image.copy()
+    with pytest.raises(ValueError, match="'density' has 1 NaN"):
+        MaterialsFromVolume(thresholds="0.2").run(image)
+    assert image == before
+    cells = pv.ImageData(dimensions=(8, 8, 8))
+    cells.cell_data["density"] = np.ones(cells.n_cells)
+    with pytest.raises(ValueError, match=r"no point scalars \(its cell arrays \['density'\]"):
+        MaterialsFromVolume(thresholds="0.2").run(cells)
+
+
 def test_fitted_tree_file_is_compact_and_resamples_alike(tmp_path):
     image = _ball_image()
     path = tmp_path / "fitted.json"
@@ -46,6 +60,38 @@ def test_fitted_tree_file_is_compact_and_resamples_alike(tmp_path):
     assert path.stat().st_size < out.field_data["bsp_bytes"][0] < out.field_data["volume_bytes"][0]
     resampled = pverosion.sample_materials(str(path), dimensions=(20, 20, 20), bounds=image.bounds)
     assert np.array_equal(resampled["material_id"], out["material_id"])
+
+
+def test_sampler_refuses_a_grid_whose_points_coincide_or_are_nowhere(tmp_path):
+    """Zero spacing puts every sample at one point, a NaN origin puts them nowhere: both refused by name."""
+    image = _ball_image(8)
+    path = tmp_path / "t.json"
+    MaterialsFromVolume(thresholds="0.2", tree_file=str(path)).run(image)
+    flat = pv.ImageData(dimensions=(8, 8, 8))
+    flat.SetSpacing(0.0, 0.0, 0.0)
+    lost = pv.ImageData(dimensions=(8, 8, 8))
+    lost.SetOrigin(np.nan, 0.0, 0.0)
+    for grid in (flat, lost):
+        with pytest.raises(ValueError, match="finite origin and a finite, non-zero spacing"):
+            MaterialSampler(tree_file=str(path)).run(grid)
+    thin = pv.ImageData(dimensions=(1, 8, 8), spacing=(0.0, 0.25, 0.25), origin=(0.0, -1.0, -1.0))
+    assert pv.wrap(MaterialSampler(tree_file=str(path)).run(thin))["material_id"].size == 64  # one slice: fine
+
+
+def test_sample_materials_checks_the_grid_it_builds(tmp_path, monkeypatch):
+    """A huge grid was a MemoryError, 2.7 points were truncated to 2, NaN bounds failed inside PyVista."""
+    from pverosion.limits import ResourceLimitError
+
+    path = tmp_path / "t.json"
+    MaterialsFromVolume(thresholds="0.2", tree_file=str(path)).run(_ball_image(8))
+    monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "1G")
+    with pytest.raises(ResourceLimitError, match="dimensions: sampling 100000 x 100000 x 100000 points"):
+        pverosion.sample_materials(str(path), dimensions=(100_000, 100_000, 100_000))
+    with pytest.raises(ValueError, match="dimensions must be 3 positive integers"):
+        pverosion.sample_materials(str(path), dimensions=(2.7, 5, 5))
+    with pytest.raises(ValueError, match="bounds must be finite"):
+        pverosion.sample_materials(str(path), dimensions=(5, 5, 5), bounds=(-1, np.nan, -1, 1, -1, 1))
+    assert pverosion.sample_materials(str(path), dimensions=np.array([5, 5, 5])).dimensions == (5, 5, 5)
 
 
 @pytest.mark.parametrize("method", ["complete", "fitted"])
@@ -91,6 +137,22 @@ def test_cli_materials_writes_vti_tree_and_slices(tmp_path, capsys):
     assert (tmp_path / "tree.json").exists() and (tmp_path / "s.png").stat().st_size > 5_000
     assert main(["materials", str(tmp_path / "ball.vti"), "-o", str(out)]) == 2
     assert "thresholds are required" in capsys.readouterr().err
+
+
+def test_cli_checks_the_tree_file_before_the_run(tmp_path, capsys):
+    """--tree-file naming the input overwrote the volume with JSON; under a file it failed after the run."""
+    path = tmp_path / "ball.vti"
+    _ball_image(8).save(path)
+    before = path.read_bytes()
+    (tmp_path / "plain").write_text("a file")
+    for tree, message in ((path, "names the same file as the input"),
+                          (tmp_path / "out.vti", "names the same file as -o"),
+                          (tmp_path / "plain" / "t.json", "plain is not a folder")):
+        assert main(["materials", str(path), "-o", str(tmp_path / "out.vti"), "--thresholds", "0.2",
+                     "--tree-file", str(tree)]) == 2
+        assert message in capsys.readouterr().err
+        assert not (tmp_path / "out.vti").exists()
+    assert path.read_bytes() == before
 
 
 def test_weathering_follows_the_hardness_of_the_16_cells():

@@ -280,6 +280,27 @@ def test_cli_checks_the_picture_path_before_reading(tmp_path):
     assert "--screenshot" in done.stderr and "is not a folder" in done.stderr
 
 
+@pytest.mark.parametrize("options, message", [
+    (["--screenshot", "shot.png", "--window-size", "0", "0"], "window size must be two pixel counts"),
+    (["--screenshot", "shot.png", "--window-size", "100000", "100000"], "window size must be two pixel counts"),
+    (["--movie", "shot.txt"], "a movie is written as .gif"),
+    (["--movie", "shot.gif", "--fps", "1e9"], "fps must be <= 100"),
+    (["--movie", "shot.gif", "--fps", "inf"], "fps must be > 0 and finite"),
+    (["--web", "99999"], "a port is a number in 0..65535"),
+], ids=["window-zero", "window-huge", "movie-txt", "gif-fps-huge", "fps-inf", "port"])
+def test_cli_refuses_bad_picture_options_before_rendering(series_path, tmp_path, monkeypatch, capsys, options,
+                                                           message):
+    """An empty image, a std::bad_alloc abort, a TIFF-writer error or an OverflowError became named refusals."""
+    from pverosion.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["view", str(series_path), *options]) == 2
+    assert message in capsys.readouterr().err
+    assert not any(tmp_path.glob("shot*"))
+    with pytest.raises(ValueError, match="window size"):
+        view(series_path, off_screen=True, window_size=(-10, 100))
+
+
 def test_cli_screenshot_and_paraview_script(series_path, tmp_path):
     done = _cli(series_path, "--screenshot", tmp_path / "last.png", "--paraview-state", tmp_path / "open.py",
                 "--window-size", 320, 240)

@@ -54,6 +54,39 @@ def test_volume_threshold_and_cubic_voxels():
         voxel_grid_from_volume(image, threshold=1.0)
 
 
+def test_grid_builders_refuse_bad_sizes_and_no_data_before_allocating(monkeypatch):
+    """Tiny spacings were a MemoryError, zero an OverflowError, NaN heights or thresholds passed or failed unnamed."""
+    from conftest import DATA
+
+    from pverosion.filters.voxel import voxel_grid
+    from pverosion.limits import ResourceLimitError
+
+    monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "1G")
+    dem = pv.read(DATA / "SainteHelens.dem")
+    with pytest.raises(ResourceLimitError, match="spacing: a voxel grid of .* voxels"):
+        voxel_grid_from_height_field(dem, spacing=1e-3)
+    for spacing in (0, -30.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="spacing must be a finite number > 0"):
+            voxel_grid_from_height_field(dem, spacing=spacing)
+    with pytest.raises(ValueError, match="1 NaN or infinite height"):
+        voxel_grid_from_height_field(np.array([[1.0, np.nan], [1.0, 1.0]]), spacing=1.0)
+    with pytest.raises(ResourceLimitError, match="spacing, padding"):
+        voxel_grid_from_mesh(pv.Sphere(), spacing=1e-5)
+    with pytest.raises(ValueError, match="padding must be an integer >= 0"):
+        voxel_grid_from_mesh(pv.Sphere(), spacing=0.1, padding=-5)
+    image = pv.ImageData(dimensions=(4, 4, 4))
+    image["v"] = np.arange(64.0)
+    with pytest.raises(ValueError, match="threshold must be finite"):
+        voxel_grid_from_volume(image, threshold=np.nan)
+    with pytest.raises(ValueError, match="threshold 1e\\+09 leaves no material: the volume's values are 0..63"):
+        voxel_grid_from_volume(image, threshold=1e9)
+    image["v"][3] = np.nan
+    with pytest.raises(ValueError, match="1 NaN value"):
+        voxel_grid_from_volume(image, threshold=10)
+    with pytest.raises(ValueError, match="origin must be finite"):
+        voxel_grid(np.ones((3, 3, 3)), origin=(np.nan, 0.0, 0.0))
+
+
 @pytest.mark.parametrize("method", ["flying_edges", "marching_cubes"])
 def test_extracted_surfaces_are_closed_outward_and_agree(method):
     grid = _meander_grid()
@@ -90,6 +123,10 @@ def test_bad_grids_and_options_are_named():
     grid = _meander_grid()
     with pytest.raises(ValueError, match="material_amount"):
         VoxelErosion(iterations=1).run(pv.ImageData(dimensions=(4, 4, 4)))
+    dem = pv.ImageData(dimensions=(4, 4, 1), spacing=(30.0, 30.0, 1.0))  # a DEM as read: heights, no material
+    dem["elevation"] = np.arange(16.0)
+    with pytest.raises(ValueError, match="'material_amount'.*voxel_grid_from_height_field \\(a DEM\\)"):
+        VoxelErosion(iterations=1).run(dem)
     with pytest.raises(ValueError, match="source_velocity needs 3 numbers"):
         VoxelErosion(iterations=1, source_velocity="1,0").run(grid)
     odd = grid.copy()
@@ -100,6 +137,16 @@ def test_bad_grids_and_options_are_named():
         VoxelErosion(model="sticky")
     with pytest.raises(TypeError, match="ImageData"):
         pverosion.voxel_erosion(pv.Sphere())
+
+
+def test_an_absurd_source_speed_is_refused_by_the_work_check():
+    """A speed whose squared norm overflows (1e200 m/s) is named by the work check, not a ZeroDivisionError."""
+    from pverosion.limits import ResourceLimitError
+
+    grid = _meander_grid()
+    for speed in ("1e200,0,0", "1e308,0,0"):
+        with pytest.raises(ResourceLimitError, match="source_velocity"):
+            VoxelErosion(iterations=1, source_velocity=speed).run(grid)
 
 
 def test_function_accessor_and_cli_agree(tmp_path):

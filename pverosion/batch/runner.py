@@ -25,7 +25,11 @@ from pverosion.batch.job import JOBS_FOLDER, TEMP_PREFIX, run_job, warm_up, writ
 from pverosion.batch.manifest import Manifest, collect_results, write_results
 from pverosion.batch.scenario import Job, Scenario, ScenarioError, load_scenario, tomllib
 from pverosion.io import atomic_path
+from pverosion.limits import check_memory
 from pverosion.warmup import warm_up as warm_stages
+
+WORKER_BYTES = 150 << 20
+"""Estimated memory of one local worker process before its first job (Python, NumPy, VTK, numba)."""
 
 __all__ = ["BatchReport", "run_batch"]
 
@@ -126,6 +130,10 @@ def run_batch(
         raise ValueError("serial=True runs in this process; do not give scheduler, client or workers")
     if workers is not None and workers < 1:
         raise ValueError(f"workers must be >= 1; got {workers}")
+    if workers is not None and scheduler is None and client is None:  # a local cluster starts one process each
+        check_memory(workers * WORKER_BYTES, option="workers", what=f"a local cluster of {workers} worker processes")
+    if threads_per_job is not None and threads_per_job < 1:
+        raise ValueError(f"threads_per_job must be >= 1; got {threads_per_job}")
     root = Path(out).resolve()
     jobs = scenario.jobs
     with ExitStack() as stack:

@@ -161,9 +161,15 @@ def load_scenario(path: str | os.PathLike) -> Scenario:
         If the file is missing or not TOML, or any job would be invalid.
     """
     path = Path(path)
+    if path.is_dir():
+        raise ScenarioError(f"{path} is a folder, not a scenario file (.toml)")
     if not path.is_file():
         raise ScenarioError(f"no such scenario file: {path}")
-    return parse_scenario(path.read_text(encoding="utf-8"), source=path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise ScenarioError(f"{path}: not a TOML scenario (not UTF-8 text)") from None
+    return parse_scenario(text, source=path)
 
 
 def parse_scenario(text: str, *, source: str | os.PathLike | None = None, base: str | os.PathLike | None = None) -> Scenario:
@@ -189,7 +195,8 @@ def parse_scenario(text: str, *, source: str | os.PathLike | None = None, base: 
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{where}: not valid TOML: {exc}") from None
+        hint = "; scenario files are TOML" if Path(where).suffix.lower() in (".json", ".yaml", ".yml") else ""
+        raise ScenarioError(f"{where}: not valid TOML: {exc}{hint}") from None
     try:
         return _expand(doc, text=text, source=Path(source) if source is not None else None, base=base)
     except ScenarioError as exc:
@@ -380,5 +387,5 @@ def _stage_options(cls: type[ErosionFilter], table: dict, *, seed: int, base: Pa
             raise ScenarioError(f"{where} {key}: give a plain file name; it is written into the job's folder")
         options[key] = value
     if "seed" not in options and any(p.name == "seed" for p in cls.PARAMS):
-        options["seed"] = seed
+        options["seed"] = _check(cls.param("seed"), seed, f"seed (the default of {where})")
     return options

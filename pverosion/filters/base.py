@@ -173,11 +173,16 @@ class Param:
         if kind in (int, float):
             if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
                 raise TypeError(f"{self.name} must be a number; got {value!r}")
-            if kind is int and float(value) != int(value):
-                raise TypeError(f"{self.name} must be an integer; got {value!r}")
-            value = kind(value)
-            if not np.isfinite(value):
+            if isinstance(value, (float, np.floating)) and not np.isfinite(value):
                 raise ValueError(f"{self.name} must be finite; got {value!r}")
+            if kind is int and isinstance(value, (float, np.floating)) and not float(value).is_integer():
+                raise TypeError(f"{self.name} must be an integer; got {value!r}")
+            try:
+                value = kind(value)  # an integer stays exact, however large; a float option may overflow
+            except OverflowError:
+                raise ValueError(f"{self.name} must be finite; got {value!r}") from None
+            if kind is int and not -(2**63) <= value < 2**63:  # the kernels take 64-bit integers
+                raise ValueError(f"{self.name} must be a 64-bit integer (at most {2**63 - 1}); got {value!r}")
             if self.minimum is not None and value < self.minimum:
                 raise ValueError(f"{self.name} must be >= {self.minimum}; got {value!r}")
             if self.maximum is not None and value > self.maximum:

@@ -102,11 +102,22 @@ class MaterialsFromVolume(ErosionFilter):
         pd = image.GetPointData()
         arr = pd.GetArray(name) if name else pd.GetScalars()
         if arr is None:
-            raise ValueError(f"input image has no point array {name!r}" if name else "input image has no scalars")
+            cd = image.GetCellData()
+            cells = [cd.GetArrayName(i) for i in range(cd.GetNumberOfArrays())]
+            points = [pd.GetArrayName(i) for i in range(pd.GetNumberOfArrays())]
+            hint = (f" (its point arrays {points}: name one with the array option)" if points else
+                    f" (its cell arrays {cells} are not thresholded: convert them to point data)" if cells else "")
+            raise ValueError((f"input image has no point array {name!r}" if name else "input image has no point "
+                              "scalars") + hint)
         if arr.GetNumberOfComponents() != 1:
             raise ValueError("the thresholded array must have one component")
         dims = image.GetDimensions()
-        return numpy_support.vtk_to_numpy(arr).reshape(dims[::-1]).transpose(2, 1, 0)
+        values = numpy_support.vtk_to_numpy(arr).reshape(dims[::-1]).transpose(2, 1, 0)
+        nans = int(np.count_nonzero(np.isnan(values)))
+        if nans:
+            raise ValueError(f"the thresholded array {arr.GetName()!r} has {nans} NaN value(s): a NaN voxel is in no "
+                             "material; fill or mask them first")
+        return values
 
     def execute(self, inp, out) -> None:
         """Build the tree from ``inp`` and write the sampled materials into ``out``."""
@@ -180,6 +191,10 @@ class MaterialSampler(ErosionFilter):
         """Sample the field at the grid of ``inp`` into ``out``."""
         if inp.GetNumberOfPoints() == 0:
             raise ValueError("the grid is empty: it has no points to sample at")
+        dims, origin, spacing = (np.array(get()) for get in (inp.GetDimensions, inp.GetOrigin, inp.GetSpacing))
+        if not (np.all(np.isfinite(origin)) and np.all(np.isfinite(spacing))) or np.any((spacing == 0) & (dims > 1)):
+            raise ValueError(f"the grid needs a finite origin and a finite, non-zero spacing; got origin "
+                             f"{tuple(origin.tolist())}, spacing {tuple(spacing.tolist())}")
         field = self._current_field()
         domain = getattr(getattr(field, "tree", None), "domain", None)
         if domain is not None:

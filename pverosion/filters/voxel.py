@@ -58,12 +58,34 @@ def _grid_array(image, name: str, *, required: bool = False, default: float = 0.
     arr = image.GetPointData().GetArray(name)
     if arr is None:
         if required:
-            raise ValueError(f"the voxel grid needs a point array {name!r} (material per voxel in [0, 1])")
+            raise ValueError(f"the voxel grid needs a point array {name!r} (material per voxel in [0, 1]); build "
+                             "one with voxel_grid_from_volume (a scan), voxel_grid_from_height_field (a DEM) or "
+                             "voxel_grid_from_mesh in pverosion.filters.voxel")
         return np.full(dims, default)
     values = numpy_support.vtk_to_numpy(arr)
     if values.ndim != 1:
         raise ValueError(f"point array {name!r} must have one component; got {values.shape[1]}")
     return values.astype(np.float64).reshape(dims, order="F")
+
+
+BUILD_BYTES_PER_VOXEL = 48
+"""Estimated memory per voxel while a grid is built (the amount, water and work arrays in float64)."""
+
+
+def _check_spacing(spacing) -> float:
+    """``spacing`` as a float, or ``ValueError`` unless it is a finite number > 0."""
+    if isinstance(spacing, (bool, np.bool_)) or not isinstance(spacing, (int, float, np.integer, np.floating)) \
+            or not 0 < spacing < math.inf:
+        raise ValueError(f"spacing must be a finite number > 0; got {spacing!r}")
+    return float(spacing)
+
+
+def _check_grid_size(extent, spacing: float, *, option: str = "spacing") -> tuple[int, ...]:
+    """Voxels per axis covering ``extent`` (lengths) at ``spacing``, refused before allocation if too many."""
+    counts = [math.floor(float(e) / spacing + 1e-9) + 1 for e in extent]
+    check_memory(math.prod(counts) * BUILD_BYTES_PER_VOXEL, option=option, remedy=f"lower the grid's size ({option})",
+                 what=f"a voxel grid of {' x '.join(map(str, counts))} voxels")
+    return tuple(counts)
 
 
 def voxel_grid(
@@ -97,8 +119,9 @@ def voxel_grid(
     amount = np.asarray(amount, dtype=np.float64)
     if amount.ndim != 3:
         raise ValueError(f"amount must be a 3-D array (nx, ny, nz); got shape {amount.shape}")
-    if not spacing > 0:
-        raise ValueError(f"spacing must be > 0; got {spacing!r}")
+    spacing = _check_spacing(spacing)
+    if not np.all(np.isfinite(np.asarray(origin, dtype=np.float64))):
+        raise ValueError(f"origin must be finite; got {tuple(origin)!r}")
     image = pv.ImageData(dimensions=amount.shape, spacing=(spacing,) * 3, origin=tuple(origin))
     image.point_data["material_amount"] = amount.ravel(order="F")
     for name, values in (("water", water), ("source", source), ("drain", drain)):
@@ -134,9 +157,13 @@ def voxel_grid_from_mesh(mesh, *, spacing: float, padding: int = 2, water_level:
     -------
     pyvista.ImageData
     """
+    spacing = _check_spacing(spacing)
+    if isinstance(padding, (bool, np.bool_)) or not isinstance(padding, (int, np.integer)) or padding < 0:
+        raise ValueError(f"padding must be an integer >= 0; got {padding!r}")
     points, faces = polydata_triangles(mesh)
     lo = np.array(mesh.GetBounds()[::2]) - padding * spacing
     hi = np.array(mesh.GetBounds()[1::2]) + padding * spacing
+    _check_grid_size(hi - lo + spacing, spacing, option="spacing, padding")
     dims = np.maximum(np.ceil((hi - lo) / spacing).astype(int) + 1, 1)
     amount = voxelize_mesh(points, faces, origin=lo, spacing=(spacing,) * 3, dims=dims).astype(np.float64)
     water = None
@@ -169,6 +196,9 @@ def voxel_grid_from_height_field(heights, *, spacing: float, air: float = 0.0, b
     pyvista.ImageData
         The surface voxels hold the fraction of their height below the terrain.
     """
+    spacing = _check_spacing(spacing)
+    if not math.isfinite(air) or air < 0:
+        raise ValueError(f"air must be a finite height >= 0; got {air!r}")
     origin_xy = np.zeros(2)
     if isinstance(heights, vtkImageData):
         image = pv.wrap(heights)
@@ -177,8 +207,11 @@ def voxel_grid_from_height_field(heights, *, spacing: float, air: float = 0.0, b
             raise ValueError(f"a height-field image must be 2-D in x and y; got dimensions {dims}")
         values = np.asarray(image.active_scalars, dtype=np.float64).reshape(dims[:2], order="F")
         values = values[::stride, ::stride]
+        _check_heights(values)
         origin_xy = np.array(image.origin[:2])
         xy_spacing = np.array(image.spacing[:2]) * stride
+        _check_grid_size([(n - 1) * h for n, h in zip(values.shape, xy_spacing)]
+                         + [np.ptp(values) + air + 2 * spacing], spacing)
         # resample to cubic voxels of the requested edge
         nx = max(round((values.shape[0] - 1) * xy_spacing[0] / spacing) + 1, 1)
         ny = max(round((values.shape[1] - 1) * xy_spacing[1] / spacing) + 1, 1)
@@ -192,12 +225,24 @@ def voxel_grid_from_height_field(heights, *, spacing: float, air: float = 0.0, b
         values = np.asarray(heights, dtype=np.float64)
     if values.ndim != 2:
         raise ValueError(f"heights must be 2-D (nx, ny); got shape {values.shape}")
+    _check_heights(values)
     bottom = values.min() - spacing if base is None else float(base)
+    if not (math.isfinite(bottom) and bottom < values.max() + air):
+        raise ValueError(f"base must be finite and below the highest point ({values.max():g}); got {base!r}")
+    _check_grid_size([(values.shape[0] - 1) * spacing, (values.shape[1] - 1) * spacing,
+                      values.max() + air - bottom + spacing], spacing)
     nz = int(np.ceil((values.max() + air - bottom) / spacing)) + 1
     z0 = bottom + 0.5 * spacing
     amount = height_field_amount(values, z0=z0, dz=spacing, nz=nz)
     origin = (origin_xy[0], origin_xy[1], z0)
     return voxel_grid(amount, origin=origin, spacing=spacing, material_field=material_field)
+
+
+def _check_heights(values: np.ndarray) -> None:
+    """``ValueError`` for a height field holding NaN or infinite heights (no-data samples)."""
+    bad = int(np.count_nonzero(~np.isfinite(values)))
+    if bad:
+        raise ValueError(f"the height field has {bad} NaN or infinite height(s) (no-data samples); fill them first")
 
 
 def voxel_grid_from_volume(volume, *, threshold: float, array: str | None = None,
@@ -209,7 +254,15 @@ def voxel_grid_from_volume(volume, *, threshold: float, array: str | None = None
     if not (np.isclose(sx, sy) and np.isclose(sx, sz)):
         spacing = tuple(float(s) for s in image.spacing)
         raise ValueError(f"voxel erosion needs cubic voxels; the volume's spacing is {spacing}")
+    if not math.isfinite(threshold):
+        raise ValueError(f"threshold must be finite; got {threshold!r}")
+    if np.isnan(values).any():
+        raise ValueError(f"the volume has {int(np.isnan(values).sum())} NaN value(s): they are neither material "
+                         "nor empty; fill them first")
     amount = (values >= threshold).astype(np.float64).reshape(image.dimensions, order="F")
+    if not amount.any():
+        raise ValueError(f"threshold {threshold:g} leaves no material: the volume's values are "
+                         f"{values.min():g}..{values.max():g}")
     return voxel_grid(amount, origin=image.origin, spacing=sx, material_field=material_field)
 
 
@@ -289,6 +342,7 @@ def voxel_solver(grid, *, params: ErosionParameters | None = None, source_veloci
     ValueError
         Non-cubic voxels, a missing ``material_amount``, bad ``hardness`` or ``source_velocity``.
     """
+    amount = _grid_array(grid, "material_amount", required=True)  # first: a raw scan or DEM lacks it
     spacing = np.array(grid.GetSpacing())
     if not (np.isclose(spacing[0], spacing[1]) and np.isclose(spacing[0], spacing[2])):
         raise ValueError(f"voxel erosion needs cubic voxels; the grid's spacing is {tuple(spacing.tolist())}")
@@ -299,7 +353,7 @@ def voxel_solver(grid, *, params: ErosionParameters | None = None, source_veloci
     if np.any(hardness <= 0) or not np.all(np.isfinite(hardness)):
         raise ValueError("hardness must be finite and > 0 everywhere")
     return VoxelErosionSolver(
-        _grid_array(grid, "material_amount", required=True), _grid_array(grid, "water"),
+        amount, _grid_array(grid, "water"),
         spacing=float(spacing[0]), erodibility=1.0 / hardness, params=params,
         source=_grid_array(grid, "source") != 0, source_velocity=velocity, drain=_grid_array(grid, "drain") != 0,
         **fluid_options,
@@ -315,11 +369,12 @@ OPERATIONS_PER_SUBSTEP = 200
 
 def _check_step_work(fluid: VoxelFluid, cells: int, dt: float) -> None:
     """Refuse a time step whose CFL substeps and diffusion passes would take effectively forever."""
-    h, speed = fluid.spacing, float(np.linalg.norm(fluid.source_velocity))
+    h, speed = fluid.spacing, math.hypot(*map(float, fluid.source_velocity))  # hypot: no overflow at 1e200
     # the substeps keep the fastest face under cfl cells: at least the source's speed and gravity's fall
     sub = min(math.sqrt(fluid.cfl * h / fluid.gravity) if fluid.gravity > 0 else math.inf,
               fluid.cfl * h / speed if speed > 0 else math.inf, dt)
-    substeps = math.ceil(dt / sub)
+    substeps = dt / sub if sub > 0 else math.inf  # sub underflows to 0 for an absurd source speed
+    substeps = math.ceil(substeps) if math.isfinite(substeps) else substeps
     option = "source_velocity" if speed > 0 and fluid.cfl * h / speed < dt else "time_step"
     check_work(float(cells) * substeps * OPERATIONS_PER_SUBSTEP, option=option,
                what=f"a time step of {dt:.3g} s in at least {substeps:.3g} CFL substeps over {cells} voxels")
