@@ -363,17 +363,14 @@ def _exchange(points, faces, ring_ptr, ring_idx, areas, pos, vel, contact_face, 
 
 
 @njit(cache=True, error_model="numpy")
-def _apply_volumes(points, faces, indptr, face_ids, corners, pending, cap, displacement, order):
+def _apply_volumes(points, faces, indptr, face_ids, corners, pending, cap, displacement):
     """Move each vertex with pending volume along its fan normal so the enclosed volume changes by exactly it.
 
-    Vertices are processed in ``order`` (each move sees its neighbours' moves,
-    so the order is part of the result: :func:`_volume_order` makes it a
-    property of the points, not of their numbering); each move is capped at
-    ``cap[v]`` and the rest stays in ``pending``. Returns the number of
-    vertices moved.
+    Vertices are processed in index order; each move is capped at ``cap[v]``
+    and the rest stays in ``pending``. Returns the number of vertices moved.
     """
     moved = 0
-    for v in order:
+    for v in range(points.shape[0]):
         s = pending[v]
         if s == 0.0 or cap[v] <= 0.0:
             continue
@@ -400,13 +397,6 @@ def _apply_volumes(points, faces, indptr, face_ids, corners, pending, cap, displ
             displacement[v, d] += step[d]
         moved += 1
     return moved
-
-
-def _volume_order(points: np.ndarray, pending: np.ndarray) -> np.ndarray:
-    """The vertices with pending volume, ordered by their coordinates (x, then y, then z; index for equal points)."""
-    todo = np.flatnonzero(pending != 0.0)
-    at = points[todo]
-    return todo[np.lexsort((todo, at[:, 2], at[:, 1], at[:, 0]))]
 
 
 # --- solver -----------------------------------------------------------------------------------------------------
@@ -653,8 +643,7 @@ class HydraulicSolver(GuardedMeshSolver):
         cap = (e_avg / self.step_divisor) * self._scale[self.ids] * movable
         before = self.points
         self.points = self.points.copy()
-        _apply_volumes(self.points, self.faces, *self._incidence, self.pending, cap, self.displacement,
-                       _volume_order(self.points, self.pending))
+        _apply_volumes(self.points, self.faces, *self._incidence, self.pending, cap, self.displacement)
         return np.any(self.points != before, axis=1)
 
     def conservation_error(self) -> float:
