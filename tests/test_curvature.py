@@ -82,6 +82,34 @@ def test_curvature_scales_inversely_with_size():
     np.testing.assert_allclose(b.mean, a.mean / 4.0, rtol=1e-9, atol=1e-12)
 
 
+@pytest.mark.parametrize("change", ["vertex_order", "face_order", "winding", "moved_1e5"])
+def test_open_scan_curvature_does_not_depend_on_numbering_winding_or_place(change):
+    """An open, bumpy patch of a sphere: renumbered vertices or faces and reversed winding change the values only
+    by the rounding of the sums' order (default orientation="outward"); moved 1e5 units away, by the rounding of
+    the coordinates there (1e-11 of the 1-unit model; the curvatures, up to 29, moved by 1e-8)."""
+    sphere = icosphere(1.0, 4)
+    rng = np.random.default_rng(2)
+    points = np.asarray(sphere.points) * (1.0 + 0.02 * rng.standard_normal((sphere.n_points, 1)))
+    faces = sphere.regular_faces[points[sphere.regular_faces][:, :, 2].min(axis=1) > -0.3]  # open at the bottom
+    used = np.unique(faces)
+    points, faces = points[used], np.searchsorted(used, faces)
+    other_points, other_faces, back = points, faces, np.arange(len(points))
+    if change == "vertex_order":
+        back = rng.permutation(len(points))  # new vertex i is old vertex back[i]
+        other_points, other_faces = points[back], np.argsort(back)[faces]
+    elif change == "face_order":
+        other_faces = faces[rng.permutation(len(faces))]
+    elif change == "winding":
+        other_faces = faces[:, ::-1]
+    else:
+        other_points = points + 1e5
+    reference = pverosion.curvature(pv.PolyData.from_regular_faces(points, faces))
+    other = pverosion.curvature(pv.PolyData.from_regular_faces(other_points, other_faces))
+    atol = 1e-7 if change == "moved_1e5" else 1e-12
+    for name in ("mean_curvature", "gaussian_curvature", "k1", "k2"):
+        np.testing.assert_allclose(other[name], reference[name][back], rtol=0, atol=atol, err_msg=name)
+
+
 def test_bunny_finite_and_convex_ears_positive(bunny):
     out = pverosion.curvature(bunny)
     for name in ("mean_curvature", "gaussian_curvature", "k1", "k2", "principal_direction_1"):
