@@ -119,8 +119,9 @@ def _check_resources(fluid: FluidParameters, emitters: list[Emitter], n_points: 
     for k, emitter in enumerate(emitters):
         side = 2 * (emitter.radius // fluid.spacing) + 1  # the disc's lattice is built on a square of this side
         check_memory(side * side * 64, option="emitter",
+                     remedy="give the emitter a smaller radius or the particles a larger radius",
                      what=f"emitter {k} (radius {emitter.radius:g}, {side:.3g}^2 lattice points of spacing "
-                          f"{fluid.spacing:.3g})")
+                          f"{fluid.spacing:.3g}, twice the particle radius)")
     check_memory(n * BYTES_PER_PARTICLE + 400 * (n_points + n_faces), option="max_particles",
                  what=f"a fluid of up to {n} particles")
     check_work(float(n) * fluid.substeps * fluid.solver_iterations * NEIGHBOURS, option="substeps",
