@@ -8,6 +8,7 @@ Output: a MultiBlock with blocks ``mesh`` (the eroded surface) and
 from __future__ import annotations
 
 import warnings
+from typing import ClassVar
 
 import numpy as np
 import pyvista as pv
@@ -188,6 +189,7 @@ class HydraulicErosion(MeshSolverFilter):
     LABEL = "Hydraulic erosion (particle fluid)"
     COMMAND = "hydraulic"
     OUTPUT_TYPE = "vtkMultiBlockDataSet"
+    REQUIRED: ClassVar[dict[str, str]] = {"emitter": "x,y,z,dx,dy,dz,r,rate"}
     PARAMS = (
         Param("iterations", 100, "Iterations: one fluid step and one erosion step each.", minimum=0),
         Param("model", "curvature", "Erosion model: curvature (Skorkovska 2019 eqs. 6-7) or sediment (shear stress, "
