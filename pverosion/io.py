@@ -295,12 +295,34 @@ def read_mesh(path: str | os.PathLike) -> pv.PolyData:
         raise ValueError(f"{path} holds an image (a volume on a regular grid), not a surface; "
                          "this stage takes a triangle mesh (PLY, STL, OBJ, VTP, VTK)")
     if isinstance(data, pv.MultiBlock):
-        data = data.combine()
+        data = _surface_block(data, path)
     if not isinstance(data, pv.PolyData):
         data = data.extract_surface(algorithm="dataset_surface")
     if data.n_points == 0:
         raise ValueError(f"{path} holds no surface points")
     return data
+
+
+def _surface_block(blocks: pv.MultiBlock, path: Path) -> pv.DataSet:
+    """The one block of a MultiBlock that holds a surface (its polygons), e.g. ``surface`` of a voxel result.
+
+    A result's blocks are not one mesh: merged, a voxel state's grid and its
+    isosurface, or shards and their links, were reported as non-triangles or
+    non-manifold edges. A MultiBlock of a single non-empty block is that block.
+    """
+    named = [(blocks.get_block_name(i) or f"block {i}", block) for i, block in enumerate(blocks)
+             if block is not None and block.n_points]
+    if len(named) == 1:
+        block = named[0][1]
+        return block.combine() if isinstance(block, pv.MultiBlock) else block
+    surfaces = [(name, block) for name, block in named if isinstance(block, pv.PolyData) and block.n_cells
+                and block.n_cells > block.n_verts + block.n_lines]
+    if len(surfaces) == 1:
+        return surfaces[0][1]
+    kinds = ", ".join(f"{name} ({type(block).__name__})" for name, block in named)
+    raise ValueError(f"{path} is a MultiBlock of {len(named)} blocks: {kinds or 'none with points'}; "
+                     f"{'more than one' if surfaces else 'none'} holds a surface: save the block to use as its "
+                     "own .vtp file")
 
 
 def write_atomic(dataset: pv.DataObject, path: str | os.PathLike) -> Path:

@@ -326,9 +326,14 @@ class SeriesViewer(pv.Plotter):
             self.slice_origin = np.array(image.center)
         options = self._colour_options(image)
         base = f"{panel}:{name}"
-        for axis in "xyz":
-            cut = image.slice(normal=axis, origin=self.slice_origin)
+        for k, axis in enumerate("xyz"):
+            # an image one layer thick across the axis is its own slice (a plane cut in its plane is empty)
+            cut = image.cast_to_structured_grid() if image.dimensions[k] == 1 else \
+                image.slice(normal=axis, origin=self.slice_origin)
             self.slices[axis] = cut
+            if not cut.n_points:  # a 2-D image cut across a line it does not reach
+                self.remove_actor(f"{base}:slice_{axis}", render=False)
+                continue
             actor = self.add_mesh(cut, name=f"{base}:slice_{axis}", reset_camera=False, render=False,
                                   show_scalar_bar=axis == "x", lighting=False, **options)  # true colours
             actor.SetVisibility(self.volume_mode == "slices" and name not in self.hidden)

@@ -159,7 +159,8 @@ def test_a_folder_a_binary_file_or_json_as_the_scenario_is_named(tmp_path):
 
 def test_a_scenario_seed_too_large_for_a_stage_fails_before_any_job():
     """The scenario's seed fills the stages' seed options: it is checked as theirs, not found at run time."""
-    text = 'seed = 99999999999999999999\n[input]\nexample = "rock"\n[[stages]]\nstage = "hydraulic"\n'
+    text = ('seed = 99999999999999999999\n[input]\nexample = "rock"\n[[stages]]\nstage = "hydraulic"\n'
+            'emitter = "0,0,1,0,0,-1,0.2,50"\n')
     with pytest.raises(ScenarioError, match=r"seed \(the default of \[\[stages\]\] #1 \(hydraulic\)\).*64-bit"):
         parse_scenario(text)
     assert parse_scenario(text.replace("99999999999999999999", "7")).jobs[0].stages[0]["options"]["seed"] == 7
@@ -176,6 +177,17 @@ def test_a_local_cluster_too_large_or_zero_threads_is_refused_before_anything(tm
     for threads in (0, -1):
         with pytest.raises(ValueError, match="threads_per_job must be >= 1"):
             run_batch(path, tmp_path / "out", serial=True, threads_per_job=threads, progress=False)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("stage, option", [("hydraulic", "emitter"), ("materials", "thresholds")])
+def test_a_required_option_left_out_fails_before_any_job(tmp_path, stage, option):
+    """Without it every job failed at run time (exit 1, a folder of failed jobs); now the scenario is refused."""
+    source = '[input]\nexample = "rock"\n' if stage == "hydraulic" else '[input]\nfile = "v.vti"\n'
+    pv.ImageData(dimensions=(4, 4, 4)).save(tmp_path / "v.vti")
+    path = _write(tmp_path, source + f'[[stages]]\nstage = "{stage}"\n')
+    with pytest.raises(ScenarioError, match=rf"\({stage}\): {option} is required, e\.g\. {option} = "):
+        run_batch(path, tmp_path / "out", serial=True, progress=False)
     assert not (tmp_path / "out").exists()
 
 

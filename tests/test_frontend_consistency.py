@@ -20,7 +20,7 @@ from pverosion import api
 from pverosion._accessor import ErosionAccessor
 from pverosion._frontend import StageFunction, param_entry
 from pverosion._stages import STAGE_INDEX, load_stage
-from pverosion.batch.scenario import STAGES, _stage_options
+from pverosion.batch.scenario import STAGES, ScenarioError, _stage_options
 from pverosion.cli import build_parser
 from pverosion.filters.base import parse_numbers
 from pverosion.filters.paraview import _convert, make_proxy
@@ -106,6 +106,10 @@ def test_batch_stage_takes_every_option_with_its_default(stage, tmp_path):
     cls = load_stage(stage.command)
     assert STAGES[stage.command] is cls
     table = {p.name: p.default for p in cls.PARAMS if p.path is None}
+    for name in cls.REQUIRED:  # a required option at its (empty) default is refused; give it a value
+        with pytest.raises(ScenarioError, match=f"{name} is required"):
+            _stage_options(cls, table, seed=0, base=tmp_path, where="test")
+        table[name] = {"emitter": "0,0,1,0,0,-1,0.2,50", "thresholds": "40,100"}[name]
     options = _stage_options(cls, table, seed=0, base=tmp_path, where="test")
     assert options == table
 

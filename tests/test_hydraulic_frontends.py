@@ -98,3 +98,13 @@ def test_a_failed_run_reports_no_progress_it_did_not_make():
     with pytest.raises(ValueError, match="time_step"):
         alg.step_through(_slab(), [1.0, 2.0, 3.0], on_progress=reached.append)
     assert max(reached, default=0.0) < 1.0
+
+
+def test_a_tiny_particle_radius_is_named_as_the_cause_of_a_huge_emitter_lattice(monkeypatch):
+    """The emitter's lattice spacing is twice the particle radius: the refusal says so and how to fix it."""
+    from pverosion.limits import ResourceLimitError
+
+    monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "1G")
+    alg = HydraulicErosion(iterations=1, radius=1e-9, emitter="0,0,0.6,0,0,-1,0.2,50")
+    with pytest.raises(ResourceLimitError, match="twice the particle radius.*the particles a larger radius"):
+        alg.run(pv.Sphere())

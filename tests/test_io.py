@@ -51,3 +51,18 @@ def test_read_mesh_formats_and_errors(tmp_path):
         read_mesh(tmp_path / "missing.ply")
     with pytest.raises(IsADirectoryError, match="is a folder, not a file"):
         read_mesh(tmp_path)
+
+
+def test_read_mesh_takes_the_one_surface_block_of_a_result(tmp_path):
+    """A voxel result's grid and isosurface were merged into one 'mesh' of quads and triangles."""
+    state = pv.ImageData(dimensions=(3, 3, 3))
+    surface = pv.Sphere()
+    pv.MultiBlock({"state": state, "surface": surface}).save(tmp_path / "voxel.vtm")
+    mesh = read_mesh(tmp_path / "voxel.vtm")
+    assert mesh.n_points == surface.n_points and mesh.n_cells == surface.n_cells
+    particles = pv.PolyData(np.random.default_rng(0).random((5, 3)))  # vertices only: not a surface
+    pv.MultiBlock({"mesh": surface, "particles": particles}).save(tmp_path / "fluid.vtm")
+    assert read_mesh(tmp_path / "fluid.vtm").n_points == surface.n_points
+    pv.MultiBlock({"a": surface, "b": pv.Cube().triangulate()}).save(tmp_path / "two.vtm")
+    with pytest.raises(ValueError, match=r"2 blocks: a \(PolyData\), b \(PolyData\); more than one holds a surface"):
+        read_mesh(tmp_path / "two.vtm")

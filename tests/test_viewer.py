@@ -395,3 +395,18 @@ def test_play_advances_and_wraps(series_path):
         assert viewer.advance() == 0
     finally:
         viewer.close()
+
+
+@pytest.mark.parametrize("dims", [(6, 5, 1), (1, 6, 5), (1, 1, 1)], ids=["dem", "x-slab", "one-voxel"])
+def test_an_image_one_layer_thick_is_its_own_slice(dims):
+    """A DEM read as a (nx, ny, 1) image failed to show: the slice in its own plane was empty."""
+    image = pv.ImageData(dimensions=dims)
+    image["elevation"] = np.arange(image.n_points, dtype=float)
+    plotter = view(image, off_screen=True, window_size=(120, 100))
+    try:
+        flat = "xyz"[dims.index(1)]
+        assert plotter.slices[flat].n_points == image.n_points
+        assert np.array_equal(plotter.slices[flat]["elevation"], image["elevation"])
+        assert plotter.screenshot(return_img=True).shape[:2] == (100, 120)
+    finally:
+        plotter.close()

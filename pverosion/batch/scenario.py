@@ -386,6 +386,9 @@ def _stage_options(cls: type[ErosionFilter], table: dict, *, seed: int, base: Pa
         elif param.path == "output" and value and (Path(value).is_absolute() or len(Path(value).parts) != 1):
             raise ScenarioError(f"{where} {key}: give a plain file name; it is written into the job's folder")
         options[key] = value
+    for key, example in cls.REQUIRED.items():
+        if not options.get(key):
+            raise ScenarioError(f"{where}: {key} is required, e.g. {key} = {example!r}")
     if "seed" not in options and any(p.name == "seed" for p in cls.PARAMS):
         options["seed"] = _check(cls.param("seed"), seed, f"seed (the default of {where})")
     return options

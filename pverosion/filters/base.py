@@ -261,6 +261,9 @@ class ErosionFilter(VTKPythonAlgorithmBase):
     """CLI subcommand; the lower-case class name when empty."""
     TIME_DEPENDENT: ClassVar[bool] = False
     """Whether the output publishes TIME_STEPS (one per simulation step)."""
+    REQUIRED: ClassVar[dict[str, str]] = {}
+    """Options a run cannot do without, with an example value: a batch scenario is checked for them before
+    any job runs (the filter itself refuses a run without them)."""
     INPUT_TYPE: ClassVar[str] = "vtkPolyData"
     """Data type of every input port."""
     INPUT_PORTS: ClassVar[tuple[str, ...]] = ("Input",)

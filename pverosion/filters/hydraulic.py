@@ -8,6 +8,7 @@ Output: a MultiBlock with blocks ``mesh`` (the eroded surface) and
 from __future__ import annotations
 
 import warnings
+from typing import ClassVar
 
 import numpy as np
 import pyvista as pv
@@ -119,8 +120,9 @@ def _check_resources(fluid: FluidParameters, emitters: list[Emitter], n_points: 
     for k, emitter in enumerate(emitters):
         side = 2 * (emitter.radius // fluid.spacing) + 1  # the disc's lattice is built on a square of this side
         check_memory(side * side * 64, option="emitter",
+                     remedy="give the emitter a smaller radius or the particles a larger radius",
                      what=f"emitter {k} (radius {emitter.radius:g}, {side:.3g}^2 lattice points of spacing "
-                          f"{fluid.spacing:.3g})")
+                          f"{fluid.spacing:.3g}, twice the particle radius)")
     check_memory(n * BYTES_PER_PARTICLE + 400 * (n_points + n_faces), option="max_particles",
                  what=f"a fluid of up to {n} particles")
     check_work(float(n) * fluid.substeps * fluid.solver_iterations * NEIGHBOURS, option="substeps",
@@ -187,6 +189,7 @@ class HydraulicErosion(MeshSolverFilter):
     LABEL = "Hydraulic erosion (particle fluid)"
     COMMAND = "hydraulic"
     OUTPUT_TYPE = "vtkMultiBlockDataSet"
+    REQUIRED: ClassVar[dict[str, str]] = {"emitter": "x,y,z,dx,dy,dz,r,rate"}
     PARAMS = (
         Param("iterations", 100, "Iterations: one fluid step and one erosion step each.", minimum=0),
         Param("model", "curvature", "Erosion model: curvature (Skorkovska 2019 eqs. 6-7) or sediment (shear stress, "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from typing import ClassVar
 
 import numpy as np
 from vtkmodules.util import numpy_support
@@ -76,6 +77,7 @@ class MaterialsFromVolume(ErosionFilter):
     COMMAND = "materials"
     INPUT_TYPE = "vtkImageData"
     OUTPUT_TYPE = "vtkImageData"
+    REQUIRED: ClassVar[dict[str, str]] = {"thresholds": "40,100,160"}
     PARAMS = (
         Param("thresholds", "", "Material boundaries, comma separated (required), e.g. 40,100,160.", numbers=0),
         Param("array", "", "Input point array to threshold (default: the active scalars)."),
