@@ -252,12 +252,17 @@ def test_pour_scene_fits_its_emitter_at_any_scale(scale):
                                                                                           axis=0).max(), rel=1e-6)
 
 
-def test_fill_holes_closes_a_rock_with_its_top_cut_off():
+def _topless_rock() -> tuple[np.ndarray, np.ndarray]:
+    """The procedural rock with its top (faces reaching above z = 0.6) cut off: points (V, 3), faces (F, 3)."""
     rock = load_rock(subdivisions=4)
     faces = rock.regular_faces
     kept = faces[np.asarray(rock.points)[faces][:, :, 2].max(axis=1) < 0.6]
     used = np.unique(kept)
-    points, kept = np.asarray(rock.points)[used], np.searchsorted(used, kept)
+    return np.asarray(rock.points)[used], np.searchsorted(used, kept)
+
+
+def test_fill_holes_closes_a_rock_with_its_top_cut_off():
+    points, kept = _topless_rock()
     filled_points, filled_faces = fill_holes(points, kept)
     np.testing.assert_array_equal(filled_points[: len(points)], points)
     np.testing.assert_array_equal(filled_faces[: len(kept)], kept)
@@ -268,11 +273,7 @@ def test_fill_holes_closes_a_rock_with_its_top_cut_off():
 def test_fill_holes_puts_every_new_point_at_the_mean_of_its_ring():
     """The patch is a membrane solved exactly: each new point's uniform Laplacian is zero to rounding (relaxed by
     a fixed number of iterations, the rock's patch kept residuals of 1e-5 of its size)."""
-    rock = load_rock(subdivisions=4)
-    faces = rock.regular_faces
-    kept = faces[np.asarray(rock.points)[faces][:, :, 2].max(axis=1) < 0.6]
-    used = np.unique(kept)
-    points, kept = np.asarray(rock.points)[used], np.searchsorted(used, kept)
+    points, kept = _topless_rock()
     filled_points, filled_faces = fill_holes(points, kept)
     edges = np.concatenate([filled_faces[:, [0, 1]], filled_faces[:, [1, 2]], filled_faces[:, [2, 0]]])
     edges = edges[edges[:, 0] >= len(points)]
@@ -294,11 +295,7 @@ def test_fill_holes_patches_do_not_depend_on_numbering_or_winding(change):
     """A patch is built from its rim's points alone: the same new points and triangles (as point triples) when
     the faces are reversed or renumbered or the vertices renumbered (the rim had been followed from wherever the
     boundary walk met it first, and renumbered faces gave the rock's cut top 432 new points instead of 436)."""
-    rock = load_rock(subdivisions=4)
-    faces = rock.regular_faces
-    kept = faces[np.asarray(rock.points)[faces][:, :, 2].max(axis=1) < 0.6]
-    used = np.unique(kept)
-    points, kept = np.asarray(rock.points)[used], np.searchsorted(used, kept)
+    points, kept = _topless_rock()
     rng = np.random.default_rng(7)
     other_points, other_faces = points, kept
     if change == "winding":
