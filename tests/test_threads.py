@@ -2,14 +2,21 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import threading
+import time
+from pathlib import Path
 
 import numba
 import numpy as np
 import pytest
+import pyvista as pv
 from numba import njit
 
 from pverosion.kernels._scatter import CHUNKS, chunk_range
+from pverosion.kernels import _threads
+from pverosion.kernels.curvature.operator import principal_curvatures
 from pverosion.kernels._threads import MIN_ITEMS_PER_RANGE, for_chunks, for_ranges
 
 
@@ -127,3 +134,67 @@ def test_an_interrupt_in_a_pool_thread_reaches_the_caller():
             for_ranges(interrupt_elsewhere, 2 * MIN_ITEMS_PER_RANGE)
     finally:
         numba.set_num_threads(before)
+
+
+@pytest.fixture
+def default_threads(monkeypatch):
+    """numba's default thread count in this thread, ``NUMBA_NUM_THREADS`` unset, adaptation on."""
+    monkeypatch.delenv("NUMBA_NUM_THREADS", raising=False)
+    before = numba.get_num_threads()
+    numba.set_num_threads(numba.config.NUMBA_DEFAULT_NUM_THREADS)
+    yield numba.config.NUMBA_DEFAULT_NUM_THREADS
+    numba.set_num_threads(before)
+    _threads.adapt_to_load(True)
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS != numba.config.NUMBA_DEFAULT_NUM_THREADS,
+                    reason="NUMBA_NUM_THREADS sets the pool size")
+def test_other_running_programs_add_threads_only_to_the_default_count(default_threads, monkeypatch):
+    n = default_threads
+    monkeypatch.setattr(_threads, "other_running", lambda: 0)
+    assert _threads._threads() == n
+    monkeypatch.setattr(_threads, "other_running", lambda: 1)
+    assert _threads._threads() == n + min(n, 2)
+    monkeypatch.setattr(_threads, "other_running", lambda: 50)
+    assert _threads._threads() == 2 * n  # never more than twice the count
+    _threads.adapt_to_load(False)
+    assert _threads._threads() == n
+    _threads.adapt_to_load(True)
+    monkeypatch.setenv("NUMBA_NUM_THREADS", str(n))  # a count the user chose is kept
+    assert _threads._threads() == n
+    monkeypatch.delenv("NUMBA_NUM_THREADS")
+    if n > 1:
+        numba.set_num_threads(n - 1)  # as are a lowered count and a stage's cap
+        assert _threads._threads() == n - 1
+
+
+@pytest.mark.skipif(not Path("/proc/loadavg").exists(), reason="reads /proc/loadavg (Linux)")
+def test_a_spinning_program_is_seen_as_running(monkeypatch):
+    monkeypatch.setattr(_threads, "LOAD_CHECK_S", 0.0)
+    spinner = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        time.sleep(0.3)
+        _threads.other_running()
+        assert _threads.other_running() >= 1
+    finally:
+        spinner.kill()
+        spinner.wait()
+
+
+def test_results_do_not_depend_on_threads_added_for_a_busy_machine(default_threads, monkeypatch):
+    sphere = pv.Icosphere(nsub=5, radius=2.0)
+    points, faces = np.asarray(sphere.points, np.float64), sphere.regular_faces
+    values = np.random.default_rng(5).standard_normal(50_001) * 1e6
+    runs = []
+    for busy in (0, 3):
+        monkeypatch.setattr(_threads, "other_running", lambda busy=busy: busy)
+        partial = np.zeros(CHUNKS)
+        for_chunks(_chunk_sum, len(values), values, partial)
+        visits = np.zeros(100_003, np.int64)
+        for_ranges(_count_visits, len(visits), visits)
+        assert np.all(visits == 1)
+        runs.append((partial, principal_curvatures(points, faces)))
+    (sums0, curv0), (sums1, curv1) = runs
+    assert np.array_equal(sums0, sums1)
+    for name in ("k1", "k2", "direction1", "direction2", "normals", "point_areas"):
+        assert np.array_equal(getattr(curv0, name), getattr(curv1, name))

@@ -93,6 +93,9 @@ def run_job(job: Job, root: str | os.PathLike, *, threads: int | None = None) ->
     if stored is not None:
         return {**stored, "reused": True}
     jobs.mkdir(parents=True, exist_ok=True)
+    from pverosion.kernels._threads import adapt_to_load
+
+    adapt_to_load(False)  # the other programs running are mostly this batch's other jobs
     if threads is not None:
         import numba
 

@@ -26,13 +26,14 @@ from __future__ import annotations
 import itertools
 import os
 import threading
+import time
 from collections.abc import Callable
 from queue import SimpleQueue
 
 from pverosion.kernels._scatter import CHUNKS
 
-__all__ = ["HEAVY_ITEMS_PER_RANGE", "MIN_ITEMS_PER_RANGE", "PIECES_PER_THREAD", "for_chunks", "for_ranges",
-           "range_count"]
+__all__ = ["BUSY_PIECES_PER_THREAD", "HEAVY_ITEMS_PER_RANGE", "LOAD_CHECK_S", "MIN_ITEMS_PER_RANGE",
+           "PIECES_PER_THREAD", "adapt_to_load", "for_chunks", "for_ranges", "other_running", "range_count"]
 
 MIN_ITEMS_PER_RANGE = 2048
 """Smallest range handed to a thread by default: below it, one call in the calling thread is cheaper."""
@@ -43,6 +44,17 @@ HEAVY_ITEMS_PER_RANGE = 64
 PIECES_PER_THREAD = 4
 """Ranges per thread :func:`for_ranges` splits a loop into (when they keep ``min_items``), so that the threads
 that start first take over the pieces of one that starts late."""
+
+
+BUSY_PIECES_PER_THREAD = 16
+"""Ranges per thread when other programs are running (:func:`other_running`): a thread that the system suspends
+in the middle of a piece then holds back a smaller part of the loop."""
+
+LOAD_CHECK_S = 0.05
+"""Seconds for which one reading of the system's running-thread count (:func:`other_running`) is reused."""
+
+_load_seen = [-1.0, 0, 0]  # time of the last reading, threads of other programs running then and the time before
+_adapt = [True]
 
 
 class _Loop:
@@ -114,10 +126,49 @@ if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_reset_pool)
 
 
+def adapt_to_load(enabled: bool) -> None:
+    """Let the default thread count grow while other programs run (the default), or keep it fixed.
+
+    A batch job with its own thread count, among other jobs on the same
+    machine, turns it off: the other programs are then its siblings.
+    """
+    _adapt[0] = bool(enabled)
+
+
+def other_running() -> int:
+    """Threads of other programs running or waiting for a core now (Linux), besides the calling one; 0 elsewhere.
+
+    The smaller count of the last two readings of the running-entity count of
+    ``/proc/loadavg``, taken at most every :data:`LOAD_CHECK_S` seconds, so
+    that a program running for a moment (or a thread of this one, finishing)
+    does not count.
+    """
+    now = time.monotonic()
+    if now - _load_seen[0] >= LOAD_CHECK_S:
+        try:
+            with open("/proc/loadavg", "rb") as f:
+                running = int(f.read().split()[3].split(b"/")[0])
+        except (OSError, ValueError, IndexError):
+            running = 1
+        _load_seen[0], _load_seen[1], _load_seen[2] = now, max(0, running - 1), _load_seen[1]
+    return min(_load_seen[1], _load_seen[2])
+
+
 def _threads() -> int:
+    """Threads for a loop: ``numba.get_num_threads()``, plus one per running thread of another program (up to
+    twice the count) when the count is numba's default and ``NUMBA_NUM_THREADS`` is not set.
+
+    With ``k`` other programs running on ``c`` cores a loop on ``c`` threads
+    gets a ``c / (c + k)`` share of the cores and is often held back by the
+    one thread the system suspends; ``c + k`` threads keep about the share a
+    quiet machine would give it in proportion, ``(c + k) / (c + 2k)``.
+    """
     import numba
 
-    return numba.get_num_threads()
+    n = numba.get_num_threads()
+    if _adapt[0] and n == numba.config.NUMBA_DEFAULT_NUM_THREADS and "NUMBA_NUM_THREADS" not in os.environ:
+        n += min(n, 2 * other_running())
+    return n
 
 
 def _run(calls: list[tuple], threads: int) -> None:
@@ -166,7 +217,10 @@ def for_ranges(kernel: Callable, n_items: int, *args, min_items: int = MIN_ITEMS
     if threads == 1:
         kernel(*args, 0, n_items)
         return
-    parts = min(threads * PIECES_PER_THREAD, n_items // max(1, min_items))
+    import numba
+
+    per_thread = BUSY_PIECES_PER_THREAD if threads > numba.get_num_threads() else PIECES_PER_THREAD
+    parts = min(threads * per_thread, n_items // max(1, min_items))
     bounds = [p * n_items // parts for p in range(parts + 1)]
     _run([(kernel, (*args, bounds[p], bounds[p + 1])) for p in range(parts)], threads)
 
