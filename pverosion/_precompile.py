@@ -432,6 +432,9 @@ def stop_helper(helper: subprocess.Popen | None) -> None:
 
 
 if __name__ == "__main__":
+    from pverosion._runtime import relax_gc_for_compilation
+
+    relax_gc_for_compilation()  # this process only compiles
     lock_cache_saves()
     _share_compilations(wait=False)
     compile_plan(sys.argv[1])

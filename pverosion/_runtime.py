@@ -11,13 +11,16 @@
 - :func:`stage_run` wraps one stage's execution: it caps numba's threads for
   small inputs (respecting ``NUMBA_NUM_THREADS`` and :func:`numba.set_num_threads`)
   and, when numba has to compile kernels (an empty cache: a fresh install, a new
-  numba version), says so once on stderr with the time it took.
+  numba version), says so once on stderr with the time it took. While it
+  compiles, the objects alive before are kept out of Python's cyclic garbage
+  collector and it collects less often (:func:`relax_gc_for_compilation`).
 
 This module does not import numba; it only uses it once a stage runs.
 """
 
 from __future__ import annotations
 
+import gc
 import os
 import platform
 import sys
@@ -29,11 +32,14 @@ from typing import TextIO
 
 __all__ = [
     "ALLOCATOR_SETTINGS",
+    "COMPILE_GC_THRESHOLD",
     "POINTS_PER_THREAD",
     "THREAD_ENVIRONMENT",
     "WORK_NOT_IN_POINTS",
     "configure_allocator",
     "configure_environment",
+    "relax_gc_for_compilation",
+    "restore_gc",
     "stage_run",
     "threads_for",
 ]
@@ -143,6 +149,39 @@ def threads_for(n_points: int, available: int) -> int:
     return max(1, min(available, -(-int(n_points) // POINTS_PER_THREAD)))
 
 
+COMPILE_GC_THRESHOLD = (20_000, 20, 20)
+"""Python's cyclic GC thresholds while numba compiles (default ``(700, 10, 10)``): numba's typing and lowering
+make millions of short-lived objects, and each collection of the older generations walks every object alive."""
+
+
+def relax_gc_for_compilation() -> tuple[int, int, int] | None:
+    """Keep the objects alive now out of the cyclic GC (:func:`gc.freeze`) and collect less often.
+
+    numba's compilation spends a tenth of its time in the collector otherwise
+    (``bench_cold_start.py``, Boolean union, see the performance notes).
+    Nothing is changed if some objects are frozen already (by the
+    application).
+
+    Returns
+    -------
+    tuple of int or None
+        The previous thresholds, for :func:`restore_gc`; None if nothing was changed.
+    """
+    if gc.get_freeze_count() > 0:
+        return None
+    previous = gc.get_threshold()
+    gc.freeze()
+    gc.set_threshold(*COMPILE_GC_THRESHOLD)
+    return previous
+
+
+def restore_gc(previous: tuple[int, int, int] | None) -> None:
+    """Undo :func:`relax_gc_for_compilation` (given what it returned)."""
+    if previous is not None:
+        gc.unfreeze()
+        gc.set_threshold(*previous)
+
+
 def _cache_location() -> str:
     from numba.core import config
 
@@ -161,6 +200,7 @@ def _compile_notice(stage: str, stream: TextIO):
             self.seconds = 0.0
             self.count = 0  # functions compiled, the ones compiled for a caller included
             self.helper = None
+            self.gc_before = None  # the GC thresholds before the first compilation (restore_gc)
 
         def on_start(self, ev):
             self.count += 1
@@ -171,6 +211,7 @@ def _compile_notice(stage: str, stream: TextIO):
                     from pverosion._precompile import start_helper
 
                     self.helper = start_helper(stage)
+                    self.gc_before = relax_gc_for_compilation()
                 self.started = time.perf_counter()
             self.depth += 1
 
@@ -214,6 +255,7 @@ def stage_run(stage: str, n_points: int = 0, *, stream: TextIO | None = None) ->
             yield
     finally:
         _state.active = False
+        restore_gc(notice.gc_before)
         if notice.helper is not None:
             from pverosion._precompile import stop_helper
 

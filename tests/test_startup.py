@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import gc
 import io
 import json
 import os
@@ -190,6 +191,28 @@ def test_compile_notice_is_shown_once_when_kernels_compile():
         assert triple(4) == 12
     assert quiet.getvalue() == ""
     assert not getattr(_runtime._state, "active", False)
+
+
+def test_compilation_relaxes_the_garbage_collector_and_the_stage_restores_it():
+    @numba.njit
+    def quadruple(x):
+        return 4 * x
+
+    thresholds, frozen = gc.get_threshold(), gc.get_freeze_count()
+    assert frozen == 0
+    with stage_run("test", stream=io.StringIO()):
+        assert gc.get_threshold() == thresholds  # nothing compiled yet
+        assert quadruple(2) == 8
+        assert gc.get_threshold() == _runtime.COMPILE_GC_THRESHOLD
+        assert gc.get_freeze_count() > 0
+    assert gc.get_threshold() == thresholds
+    assert gc.get_freeze_count() == 0
+    gc.freeze()  # an application that froze its own objects keeps them frozen, and its thresholds
+    try:
+        assert _runtime.relax_gc_for_compilation() is None
+        assert gc.get_threshold() == thresholds
+    finally:
+        gc.unfreeze()
 
 
 def test_warm_up_runs_the_chosen_stages(capsys):
