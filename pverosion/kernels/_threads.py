@@ -14,7 +14,10 @@ pieces already started, never for a thread still asleep.
 
 The number of threads is ``numba.get_num_threads()``, so
 ``NUMBA_NUM_THREADS``, :func:`numba.set_num_threads` and the per-stage caps
-of :func:`pverosion._runtime.stage_run` apply as they do to parfors.
+of :func:`pverosion._runtime.stage_run` apply as they do to parfors. While
+the count is numba's default, threads are added when other programs are
+running (:func:`other_running`), so that a busy machine slows a loop in
+proportion to the share of the cores it loses.
 Results never depend on it, nor on which thread runs which piece:
 :func:`for_ranges` splits items whose results are written independently, and
 :func:`for_chunks` runs the fixed :data:`~pverosion.kernels._scatter.CHUNKS`
@@ -155,13 +158,14 @@ def other_running() -> int:
 
 
 def _threads() -> int:
-    """Threads for a loop: ``numba.get_num_threads()``, plus one per running thread of another program (up to
-    twice the count) when the count is numba's default and ``NUMBA_NUM_THREADS`` is not set.
+    """Threads for a loop: ``numba.get_num_threads()``, plus two per running thread of another program (at most
+    the count again) when the count is numba's default and ``NUMBA_NUM_THREADS`` is not set.
 
-    With ``k`` other programs running on ``c`` cores a loop on ``c`` threads
-    gets a ``c / (c + k)`` share of the cores and is often held back by the
-    one thread the system suspends; ``c + k`` threads keep about the share a
-    quiet machine would give it in proportion, ``(c + k) / (c + 2k)``.
+    With ``k`` threads of other programs running on ``c`` cores, a loop on
+    ``c`` threads gets at most ``c / (c + k)`` of the cores, less when the
+    system suspends one of its threads in the middle of a piece and the loop
+    end waits for it; on ``c + 2k`` threads it gets ``(c + 2k) / (c + 3k)``
+    of them, and a suspended thread holds back a smaller part of the loop.
     """
     import numba
 
