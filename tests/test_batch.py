@@ -280,6 +280,19 @@ def test_a_second_batch_into_the_same_folder_is_refused(tmp_path):
 # --- Dask ------------------------------------------------------------------------------------------------
 
 
+def test_only_jobs_on_dask_workers_stop_the_thread_pool_adapting_to_load(serial_reference):
+    from distributed import Client, LocalCluster
+
+    from pverosion.batch.job import _on_dask_worker
+    from pverosion.kernels import _threads
+
+    assert _threads._adapt[0]  # the serial batch ran its jobs in this process: nothing changed here
+    assert not _on_dask_worker()
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None,
+                      silence_logs=50) as cluster, Client(cluster) as client:
+        assert client.submit(_on_dask_worker, pure=False).result()
+
+
 def test_local_cluster_outputs_equal_the_serial_run_bit_for_bit(serial_reference, tmp_path):
     scenario, reference = serial_reference
     report = run_batch(scenario, tmp_path / "out", workers=2, progress=False)

@@ -140,11 +140,12 @@ def test_an_interrupt_in_a_pool_thread_reaches_the_caller():
 def default_threads(monkeypatch):
     """numba's default thread count in this thread, ``NUMBA_NUM_THREADS`` unset, adaptation on."""
     monkeypatch.delenv("NUMBA_NUM_THREADS", raising=False)
-    before = numba.get_num_threads()
+    before, adapting = numba.get_num_threads(), _threads._adapt[0]  # a batch job run in this process turns it off
     numba.set_num_threads(numba.config.NUMBA_DEFAULT_NUM_THREADS)
+    _threads.adapt_to_load(True)
     yield numba.config.NUMBA_DEFAULT_NUM_THREADS
     numba.set_num_threads(before)
-    _threads.adapt_to_load(True)
+    _threads.adapt_to_load(adapting)
 
 
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS != numba.config.NUMBA_DEFAULT_NUM_THREADS,

@@ -65,6 +65,17 @@ def read_result(folder: str | os.PathLike) -> dict | None:
     return json.loads(path.read_text(encoding="utf-8"))
 
 
+def _on_dask_worker() -> bool:
+    """Whether this runs in a Dask worker (not in the caller's process, as a serial batch does)."""
+    try:
+        from distributed import get_worker
+
+        get_worker()
+    except (ImportError, ValueError):
+        return False
+    return True
+
+
 def run_job(job: Job, root: str | os.PathLike, *, threads: int | None = None) -> dict:
     """Run ``job`` into ``root/jobs/<job.folder>`` and return its result row.
 
@@ -93,9 +104,10 @@ def run_job(job: Job, root: str | os.PathLike, *, threads: int | None = None) ->
     if stored is not None:
         return {**stored, "reused": True}
     jobs.mkdir(parents=True, exist_ok=True)
-    from pverosion.kernels._threads import adapt_to_load
+    if _on_dask_worker():  # the other programs running are mostly this batch's other workers
+        from pverosion.kernels._threads import adapt_to_load
 
-    adapt_to_load(False)  # the other programs running are mostly this batch's other jobs
+        adapt_to_load(False)
     if threads is not None:
         import numba
 

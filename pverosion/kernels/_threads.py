@@ -132,8 +132,8 @@ if hasattr(os, "register_at_fork"):
 def adapt_to_load(enabled: bool) -> None:
     """Let the default thread count grow while other programs run (the default), or keep it fixed.
 
-    A batch job with its own thread count, among other jobs on the same
-    machine, turns it off: the other programs are then its siblings.
+    A batch job on a Dask worker turns it off for the worker: the other
+    programs running there are mostly the batch's other workers.
     """
     _adapt[0] = bool(enabled)
 
