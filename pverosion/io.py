@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import math
 import os
+import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -158,6 +160,33 @@ def _check_ply(path: Path) -> None:
                          f"more than the {have} {unit} of data after it hold")
 
 
+_GRID_ATTRIBUTES = ("Origin", "Spacing", "Direction")
+
+
+def _check_vti(path: Path) -> None:
+    """``ValueError`` if the grid of the VTK XML image ``path`` has a non-finite origin, spacing or direction.
+
+    VTK's XML reader reads ``nan`` and ``inf`` there as 0 without a warning,
+    which moves or flattens the volume.
+    """
+    with open(path, "rb") as file:
+        head = file.read(65536)
+    start = head.find(b"<ImageData")
+    if start < 0:
+        return  # not an image file: the reader says so
+    tag = head[start : head.find(b">", start)].decode("ascii", "replace")
+    for name in _GRID_ATTRIBUTES:
+        match = re.search(rf'\b{name}="([^"]*)"', tag)
+        if match is None:
+            continue
+        try:
+            values = [float(word) for word in match.group(1).split()]
+        except ValueError:
+            raise ValueError(f"cannot read {path}: its {name} {match.group(1)!r} is not a list of numbers") from None
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError(f"cannot read {path}: its {name} {match.group(1)!r} is not finite")
+
+
 def _ply_binary_size(data: np.ndarray, elements, order: str) -> int:
     """Bytes the binary PLY ``elements`` take from the start of ``data``; more than ``len(data)`` if truncated."""
     offset = 0
@@ -217,6 +246,8 @@ def _read(path: Path) -> pv.DataObject:
         raise ValueError(f"{path} is empty (0 bytes)")
     if path.suffix.lower() == ".ply":
         _check_ply(path)
+    elif path.suffix.lower() == ".vti":
+        _check_vti(path)
     shown = vtkObject.GetGlobalWarningDisplay()
     vtkObject.GlobalWarningDisplayOff()
     try:

@@ -66,3 +66,24 @@ def test_read_mesh_takes_the_one_surface_block_of_a_result(tmp_path):
     pv.MultiBlock({"a": surface, "b": pv.Cube().triangulate()}).save(tmp_path / "two.vtm")
     with pytest.raises(ValueError, match=r"2 blocks: a \(PolyData\), b \(PolyData\); more than one holds a surface"):
         read_mesh(tmp_path / "two.vtm")
+
+
+@pytest.mark.parametrize(("attribute", "value"), [("Origin", "nan 0 0"), ("Spacing", "1 inf 1"),
+                                                   ("Direction", "1 0 0 0 nan 0 0 0 1"), ("Origin", "0 zero 0")])
+def test_an_image_with_a_grid_that_is_not_finite_is_refused(tmp_path, attribute, value):
+    from pverosion.io import read_image
+
+    grid = pv.ImageData(dimensions=(4, 3, 2), origin=(5.0, 6.0, 7.0), spacing=(0.5, 0.25, 2.0))
+    grid["density"] = np.arange(grid.n_points, dtype=float)
+    good = tmp_path / "good.vti"
+    grid.save(good)
+    read = read_image(good)
+    assert read.origin == grid.origin and read.spacing == grid.spacing
+    text = good.read_bytes()
+    tag_end = text.index(b">", text.index(b"<ImageData"))
+    head = text[:tag_end].decode()
+    start = head.index(f'{attribute}="') + len(attribute) + 2
+    bad = tmp_path / "bad.vti"
+    bad.write_bytes((head[:start] + value + head[head.index('"', start):]).encode() + text[tag_end:])
+    with pytest.raises(ValueError, match=f"{attribute} '{value}' is not"):
+        read_image(bad)
