@@ -22,11 +22,13 @@ from pverosion.filters.base import (
     set_multiblock,
     set_point_array,
 )
-from pverosion.filters.mesh_solver import MeshSolverFilter, mesh_solver_output
+from pverosion.filters.mesh_solver import MeshSolverFilter, mesh_solver_output, output_rows
 from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS
 from pverosion.kernels.fluid.particle_fluid import Drain, Emitter, FluidParameters
 from pverosion.kernels.hydraulic.erosion import MODELS, HydraulicSolver, ShearParameters
+from pverosion.kernels.materials.erodibility import check_erodibility, renumbered_erodibility
 from pverosion.kernels.mesh.geometry import average_edge_length
+from pverosion.kernels.mesh.locality import CanonicalMesh, canonical_mesh
 from pverosion.kernels.mesh.orientation import ORIENTATIONS
 from pverosion.kernels.solver.mesh_evolution import REPAIR_MODES
 from pverosion.kernels.validation import InvalidMeshError
@@ -177,7 +179,11 @@ class HydraulicErosion(MeshSolverFilter):
     exchanges sediment by shear stress (eqs. 8.2–8.4) and moves vertices so
     the volume changes by exactly the sediment (eqs. 8.5–8.7). TIME_STEPS are
     0..iterations; a later time continues from the cached state, an earlier
-    one reruns (same seed, same result).
+    one reruns (same seed, same result). The solver runs on the mesh
+    numbered by its geometry (:func:`~pverosion.kernels.mesh.locality.canonical_mesh`),
+    so results do not depend on the order of the input's vertices and faces;
+    the output mesh is in the input's numbering unless edges were collapsed
+    or the topology repaired.
 
     Output blocks: ``mesh`` with point arrays ``mean_curvature``,
     ``displacement``, ``erosion_depth``, ``f_distance`` (the last
@@ -240,6 +246,8 @@ class HydraulicErosion(MeshSolverFilter):
         Param("close_holes", False, "Close the holes of an open input mesh first (the fluid needs a closed mesh)."),
     )
 
+    _canonical: CanonicalMesh | None = None  # the numbering of the solver made by _new_solver
+
     def _new_solver(self, inp) -> HydraulicSolver:
         points, faces, topology = self._surface(inp)
         emitters = list(self.structured_option("emitter"))
@@ -262,17 +270,20 @@ class HydraulicErosion(MeshSolverFilter):
             solver_iterations=self.get_option("solver_iterations"), viscosity=self.get_option("viscosity"),
             friction=self.get_option("friction"), max_particles=self.get_option("max_particles"))
         _check_resources(fluid, emitters, len(points), len(faces))
+        self._canonical = canonical = canonical_mesh(np.asarray(points, np.float64), np.asarray(faces, np.int64))
+        erodibility = renumbered_erodibility(check_erodibility(self._erodibility_for(inp), len(points)),
+                                             canonical.renumbering.order)
         domain = None
         if self.get_option("domain"):
             box = parse_numbers(self.get_option("domain"), "domain", count=6)
             domain = (box[:3], box[3:])
         return HydraulicSolver(
-            points, faces, fluid=fluid, emitters=emitters, drains=drains, domain=domain, walls=self.get_option("walls"),
+            canonical.renumbering.to_local(np.asarray(points, np.float64)), canonical.faces, fluid=fluid, emitters=emitters, drains=drains, domain=domain, walls=self.get_option("walls"),
             model=self.get_option("model"), power=self.get_option("power"),
             normalization=self.get_option("normalization"),
             step_divisor=self.get_option("step_divisor"), influence=self.get_option("influence"),
             shear=ShearParameters(**{name: self.get_option(name) for name in _SHEAR}),
-            erodibility=self._erodibility_for(inp), min_edge_ratio=self.get_option("min_edge_ratio"),
+            erodibility=erodibility, min_edge_ratio=self.get_option("min_edge_ratio"),
             check_every=self.get_option("check_every"), orientation=self.get_option("orientation"),
             repair=self.get_option("repair"), seed=self.get_option("seed"))
 
@@ -280,9 +291,10 @@ class HydraulicErosion(MeshSolverFilter):
         if self.requested_step() == self.get_option("iterations"):  # judged on the whole run, not its first steps
             _warn_without_water(solver)
         mesh = vtkPolyData()
-        mesh_solver_output(solver, inp, mesh, prefix="hydraulic")
-        set_point_array(mesh, "f_distance", solver.f_distance)
-        set_point_array(mesh, "pending_sediment", solver.pending)
+        mesh_solver_output(solver, inp, mesh, prefix="hydraulic", canonical=self._canonical)
+        rows = output_rows(solver, self._canonical)
+        for name, values in (("f_distance", solver.f_distance), ("pending_sediment", solver.pending)):
+            set_point_array(mesh, name, values if rows is None else values[rows])
         set_field_value(mesh, "model", solver.model)
         set_field_value(mesh, "time", solver.fluid.time)
         set_multiblock(out, pv.MultiBlock({"mesh": pv.wrap(mesh), "particles": particles_polydata(solver)}))

@@ -20,14 +20,28 @@ from pverosion.filters.base import (
     set_point_array,
 )
 from pverosion.kernels.materials.erodibility import Erodibility
+from pverosion.kernels.mesh.locality import CanonicalMesh
 from pverosion.kernels.mesh.topology import EdgeTopology, edge_topology
 from pverosion.kernels.solver.mesh_evolution import GuardedMeshSolver
 from pverosion.kernels.validation import InvalidMeshError
 
-__all__ = ["MeshSolverFilter", "mesh_solver_output"]
+__all__ = ["MeshSolverFilter", "mesh_solver_output", "output_rows"]
 
 
-def mesh_solver_output(solver: GuardedMeshSolver, source, out, *, prefix: str = "weathering") -> None:
+def output_rows(solver: GuardedMeshSolver, canonical: CanonicalMesh | None) -> np.ndarray | None:
+    """Which of the solver's vertices each output point is: None for the solver's order.
+
+    A solver that runs on a :func:`~pverosion.kernels.mesh.locality.canonical_mesh`
+    gives its output in the caller's numbering while it has the caller's
+    vertices and faces (no collapse, no topology repair), else in its own.
+    """
+    if canonical is None or solver.collapses or solver.repairs or len(solver.points) != len(canonical.renumbering.order):
+        return None
+    return canonical.renumbering.rank
+
+
+def mesh_solver_output(solver: GuardedMeshSolver, source, out, *, prefix: str = "weathering",
+                       canonical: CanonicalMesh | None = None) -> None:
     """Fill vtkPolyData ``out`` with the solver's current mesh and its arrays.
 
     Point arrays of ``source`` are carried to the surviving vertices. Adds
@@ -36,12 +50,21 @@ def mesh_solver_output(solver: GuardedMeshSolver, source, out, *, prefix: str = 
     inward normal) and, as field data, one ``<prefix>_<statistic>`` series
     per step (step 0 first), ``retries`` and ``frozen_vertices``. Used by
     every stage built on :class:`~pverosion.kernels.solver.mesh_evolution.GuardedMeshSolver`.
+    A solver built on ``canonical`` (the :func:`~pverosion.kernels.mesh.locality.canonical_mesh`
+    of ``source``) has its output put back in the caller's numbering where
+    :func:`output_rows` allows.
     """
+    rows = output_rows(solver, canonical)
+
+    def ordered(values: np.ndarray) -> np.ndarray:
+        return values if rows is None else values[rows]
+
     out.ShallowCopy(source)
     points = vtkPoints()  # a new object: the shallow copy shares the input's points
-    points.SetData(numpy_support.numpy_to_vtk(solver.points, deep=True))
+    points.SetData(numpy_support.numpy_to_vtk(np.ascontiguousarray(ordered(solver.points)), deep=True))
     out.SetPoints(points)
-    replace_triangles(out, solver.faces)
+    replace_triangles(out, solver.faces if canonical is None or rows is None else canonical.caller_faces(solver.faces))
+    ids = solver.ids if canonical is None else canonical.renumbering.order[solver.ids]  # the caller's vertices
     src_pd, out_pd = source.GetPointData(), out.GetPointData()
     out_pd.Initialize()
     for k in range(src_pd.GetNumberOfArrays()):
@@ -49,14 +72,14 @@ def mesh_solver_output(solver: GuardedMeshSolver, source, out, *, prefix: str = 
         if arr is None or arr.GetName() is None or not hasattr(arr, "GetNumberOfComponents"):
             continue
         values = numpy_support.vtk_to_numpy(arr)
-        carried = numpy_support.numpy_to_vtk(np.ascontiguousarray(values[solver.ids]), deep=True)
+        carried = numpy_support.numpy_to_vtk(np.ascontiguousarray(ordered(values[ids])), deep=True)
         carried.SetName(arr.GetName())
         out_pd.AddArray(carried)
-    if len(solver.faces) != source.GetNumberOfCells():
-        out.GetCellData().Initialize()  # faces were collapsed: per-face input data no longer applies
-    set_point_array(out, "mean_curvature", solver.mean_curvature())
-    set_point_array(out, "displacement", solver.displacement)
-    set_point_array(out, "erosion_depth", solver.erosion_depth())
+    if len(solver.faces) != source.GetNumberOfCells() or (canonical is not None and rows is None):
+        out.GetCellData().Initialize()  # faces were collapsed or renumbered: per-face input data no longer applies
+    set_point_array(out, "mean_curvature", ordered(solver.mean_curvature()))
+    set_point_array(out, "displacement", ordered(solver.displacement))
+    set_point_array(out, "erosion_depth", ordered(solver.erosion_depth()))
     out_pd.SetActiveScalars("mean_curvature")
     for name, series in solver.statistics.items():
         set_field_value(out, f"{prefix}_{name}", series)

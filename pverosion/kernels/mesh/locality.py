@@ -25,8 +25,8 @@ from numba import njit
 from pverosion.kernels._scatter import CHUNKS, chunk_range
 from pverosion.kernels._threads import for_chunks, for_ranges
 
-__all__ = ["LOCAL_SPAN", "MORTON_BITS", "Renumbering", "locality_renumbering", "morton_renumbering",
-           "poor_locality"]
+__all__ = ["LOCAL_SPAN", "MORTON_BITS", "CanonicalMesh", "Renumbering", "canonical_mesh", "locality_renumbering",
+           "morton_renumbering", "poor_locality"]
 
 LOCAL_SPAN = 8192
 """Vertex-index span of a face's corners above which the face counts as scattered.
@@ -280,6 +280,70 @@ def morton_renumbering(points: np.ndarray) -> Renumbering:
     rank = np.empty(n, np.int64)
     for_ranges(_rank_range, n, order, rank)
     return Renumbering(order, rank)
+
+
+@dataclass(frozen=True)
+class CanonicalMesh:
+    """A mesh numbered by its geometry alone (:func:`canonical_mesh`), and the way back to the caller's numbering.
+
+    Attributes
+    ----------
+    renumbering : Renumbering
+        Local vertex ``i`` is the caller's vertex ``renumbering.order[i]``.
+    faces : numpy.ndarray, shape (F, 3), int64
+        The faces in local vertex indices, each starting at its smallest
+        corner (the cyclic order, so the orientation, is kept), sorted by
+        their corners.
+    face_order : numpy.ndarray, shape (F,), int64
+        Local face ``k`` is the caller's face ``face_order[k]``.
+    """
+
+    renumbering: Renumbering
+    faces: np.ndarray
+    face_order: np.ndarray
+
+    def caller_faces(self, faces: np.ndarray) -> np.ndarray:
+        """Local ``faces`` (F, 3), one per local face, as the caller's faces in the caller's face order."""
+        out = np.empty_like(faces)
+        out[self.face_order] = self.renumbering.order[faces]
+        return out
+
+
+def canonical_mesh(points: np.ndarray, faces: np.ndarray) -> CanonicalMesh:
+    """Number the vertices and order the faces of a mesh by its geometry, whatever the caller's numbering.
+
+    The vertices follow the Morton curve of their positions
+    (:func:`morton_renumbering`), and vertices in one Morton cell follow their
+    coordinates (x, then y, then z); the faces start at their smallest local
+    corner and are sorted by their corners. Two numberings of one mesh give
+    the same local arrays, except for coincident vertices, which keep the
+    caller's relative order. A stage that runs on these arrays gives results
+    that do not depend on the order of the caller's vertices and faces, nor
+    on the corner each face starts at.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (V, 3), float64
+    faces : numpy.ndarray, shape (F, 3), int64
+        Validated triangles.
+
+    Returns
+    -------
+    CanonicalMesh
+    """
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    by_coordinates = np.lexsort((pts[:, 2], pts[:, 1], pts[:, 0]))
+    morton = morton_renumbering(pts[by_coordinates])  # stable: a cell's vertices stay in coordinate order
+    order = by_coordinates[morton.order]
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    renumbering = Renumbering(order, rank)
+    local = renumbering.faces(faces)
+    first = np.argmin(local, axis=1)
+    rows = np.arange(len(local))[:, None]
+    rotated = local[rows, (first[:, None] + np.arange(3)) % 3]
+    face_order = np.lexsort((rotated[:, 2], rotated[:, 1], rotated[:, 0]))
+    return CanonicalMesh(renumbering, np.ascontiguousarray(rotated[face_order]), face_order)
 
 
 def locality_renumbering(points: np.ndarray, faces: np.ndarray) -> Renumbering | None:
