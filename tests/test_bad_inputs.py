@@ -94,6 +94,8 @@ def inputs(tmp_path) -> Path:
     pv.PolyData.from_regular_faces(_sphere().points, degenerate).save(tmp_path / "degenerate.vtp")
     pv.PolyData.from_regular_faces(_sphere().points, np.vstack([faces, faces[:3, ::-1]])).save(
         tmp_path / "duplicate.vtp")
+    soup = _sphere().points[faces].reshape(-1, 3)  # every triangle with its own three points, as an STL file holds them
+    pv.PolyData.from_regular_faces(soup, np.arange(len(soup)).reshape(-1, 3)).save(tmp_path / "soup.vtp")
     (tmp_path / "other.json").write_text('{"format": "something else"}')
     return tmp_path
 
@@ -147,6 +149,10 @@ CASES = {
                       lambda d: pverosion.curvature(pv.read(d / "quads.vtp"))),
     "non-manifold": (["weather", "fan.vtp", "-o", "out.vtp"], r"non-manifold edges",
                      lambda d: pverosion.weather(pv.read(d / "fan.vtp"))),
+    "triangle soup, curvature": (["curvature", "soup.vtp", "-o", "out.vtp"], r"share a vertex.*mesh\.clean\(\)",
+                                 lambda d: pverosion.curvature(pv.read(d / "soup.vtp"))),
+    "triangle soup, weather": (["weather", "soup.vtp", "-o", "out.vtp"], r"unwelded triangle soup",
+                               lambda d: pverosion.weather(pv.read(d / "soup.vtp"), iterations=2)),
     "open mesh, hydraulic": (["hydraulic", "open.vtp", "-o", "out.vtm", "--emitter", EMITTER],
                              r"needs a closed mesh.*--close-holes",
                              lambda d: pverosion.hydraulic_erosion(pv.read(d / "open.vtp"), emitter=EMITTER)),

@@ -722,6 +722,30 @@ def check_proper_faces(faces: np.ndarray) -> None:
                                f"copies: {copies[:5].tolist()}): remove the duplicates first")
 
 
+def check_welded(faces: np.ndarray) -> None:
+    """``InvalidMeshError`` if the triangles share no vertex: a triangle soup whose coincident points were not merged.
+
+    Such a mesh (an STL file read without merging its points, or a PLY or
+    OBJ written from one) has only boundary edges, so every curvature is zero
+    and nothing would move; the message names the cause and the fix instead.
+    A single triangle is accepted.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3)
+        Triangles as vertex indices.
+
+    Raises
+    ------
+    InvalidMeshError
+        If there are two or more triangles and no vertex is used by two of them.
+    """
+    faces = np.asarray(faces)
+    if len(faces) > 1 and len(np.unique(faces)) == faces.size:
+        raise InvalidMeshError(f"no two of the mesh's {len(faces)} triangles share a vertex (an unwelded triangle "
+                               "soup, as in an STL file): merge the coincident points first (mesh.clean())")
+
+
 def polydata_triangle_mesh(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:
     """Points (V, 3) as contiguous float64 and triangles (F, 3) as contiguous int64, checked once.
 

@@ -7,6 +7,7 @@ import numpy as np
 from pverosion.filters.base import (
     ErosionFilter,
     Param,
+    check_welded,
     polydata_triangle_mesh,
     replace_triangles,
     set_field_value,
@@ -54,6 +55,7 @@ class Curvature(ErosionFilter):
     def execute(self, inp, out) -> None:
         """Compute the curvature arrays of ``inp`` into ``out``."""
         points, faces = polydata_triangle_mesh(inp)
+        check_welded(faces)
         mode = self.get_option("orientation")
         if mode == "keep":
             n_flipped = 0

@@ -14,6 +14,7 @@ from vtkmodules.vtkCommonCore import vtkPoints
 from pverosion.filters.base import (
     TimeSteppedFilter,
     check_proper_faces,
+    check_welded,
     polydata_triangles,
     replace_triangles,
     set_field_value,
@@ -111,6 +112,7 @@ class MeshSolverFilter(TimeSteppedFilter):
         """
         points, faces = polydata_triangles(inp)
         check_proper_faces(faces)
+        check_welded(faces)
         topology = edge_topology(np.asarray(faces, np.int64), len(points))
         if topology.n_nonmanifold_edges:
             raise InvalidMeshError(f"mesh has {topology.n_nonmanifold_edges} non-manifold edges (shared by more than "
