@@ -32,6 +32,17 @@ def test_shard_graph_rebuilds_a_torus_from_closed_shards():
     assert torus.n_points == pv.ParametricTorus(ringradius=1.0, crosssectionradius=0.4).triangulate().clean().n_points
 
 
+def test_a_nested_shell_facing_outward_is_a_cavity():
+    """A sphere inside a sphere, both wound outward, is a hollow ball: the shards keep the cavity empty."""
+    outer = pv.Sphere(radius=1.0, theta_resolution=24, phi_resolution=24).triangulate().clean()
+    inner = pv.Sphere(radius=0.5, theta_resolution=16, phi_resolution=16).triangulate().clean()
+    hollow = outer + inner
+    out = pverosion.shard_graph(hollow, cells=20, seed=1)
+    expected = outer.volume - inner.volume
+    assert out["surface"].volume == pytest.approx(expected, rel=1e-6)
+    assert out["shards"].volume == pytest.approx(expected, rel=1e-6)
+
+
 @pytest.mark.parametrize("winding", ["inward", "mixed"])
 def test_shards_do_not_depend_on_the_winding(winding):
     """A closed mesh with inward or mixed winding is fractured as the same mesh turned outward."""

@@ -242,7 +242,7 @@ def _path_lines(graph: Graph, record: PathRecord) -> pv.PolyData:
 
 
 def _closed_outward(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Points (V, 3) and triangles (F, 3) of a closed mesh, turned outward if its winding is not.
+    """Points (V, 3) and triangles (F, 3) of a closed mesh, each part outward and a nested part as its cavity.
 
     Raises
     ------
@@ -254,13 +254,11 @@ def _closed_outward(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, 
     if n_open:
         raise InvalidMeshError(f"the mesh must be closed: it has {n_open} boundary edges (fill its holes first, "
                                "e.g. with pverosion.meshing.fill_holes)")
-    directed = np.asarray(faces)[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    consistent = len(np.unique(directed, axis=0)) == len(directed)
-    if not consistent or signed_volume(points, faces) <= 0.0:  # inward or mixed winding: each part outward
-        from pverosion.kernels.repair.mesh_repair import outward_parts  # the repair kernels only when needed
+    # each part outward, a part inside another as its cavity: a consistent winding with a positive volume
+    # still leaves a nested part that faces outward, which would fill the cavity
+    from pverosion.kernels.repair.mesh_repair import outward_parts
 
-        faces = outward_parts(points, faces)
-    return points, faces
+    return points, outward_parts(points, faces)
 
 
 class _ShardSource:
