@@ -153,6 +153,8 @@ CASES = {
                                  lambda d: pverosion.curvature(pv.read(d / "soup.vtp"))),
     "triangle soup, weather": (["weather", "soup.vtp", "-o", "out.vtp"], r"unwelded triangle soup",
                                lambda d: pverosion.weather(pv.read(d / "soup.vtp"), iterations=2)),
+    "triangle soup, shards": (["shard-graph", "soup.vtp", "-o", "out.vtm"], r"unwelded triangle soup",
+                              lambda d: pverosion.shard_graph(pv.read(d / "soup.vtp"), cells=10)),
     "open mesh, hydraulic": (["hydraulic", "open.vtp", "-o", "out.vtm", "--emitter", EMITTER],
                              r"needs a closed mesh.*--close-holes",
                              lambda d: pverosion.hydraulic_erosion(pv.read(d / "open.vtp"), emitter=EMITTER)),

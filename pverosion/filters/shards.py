@@ -34,6 +34,7 @@ from pverosion.filters.base import (
     Param,
     TimeSteppedFilter,
     check_proper_faces,
+    check_welded,
     parse_numbers,
     polydata_triangles,
     set_field_value,
@@ -247,9 +248,10 @@ def _closed_outward(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, 
     Raises
     ------
     InvalidMeshError
-        Degenerate or duplicated faces, or boundary edges (an open mesh).
+        Degenerate or duplicated faces, a triangle soup, or boundary edges (an open mesh).
     """
     check_proper_faces(faces)
+    check_welded(faces)
     n_open = len(boundary_edges(np.asarray(faces, np.int64), len(points)))
     if n_open:
         raise InvalidMeshError(f"the mesh must be closed: it has {n_open} boundary edges (fill its holes first, "
