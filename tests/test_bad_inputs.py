@@ -94,6 +94,7 @@ def inputs(tmp_path) -> Path:
     pv.PolyData.from_regular_faces(_sphere().points, degenerate).save(tmp_path / "degenerate.vtp")
     pv.PolyData.from_regular_faces(_sphere().points, np.vstack([faces, faces[:3, ::-1]])).save(
         tmp_path / "duplicate.vtp")
+    pv.PolyData.from_regular_faces(_sphere().points * [1.0, 1.0, 0.0], faces).save(tmp_path / "flat.vtp")
     soup = _sphere().points[faces].reshape(-1, 3)  # every triangle with its own three points, as an STL file holds them
     pv.PolyData.from_regular_faces(soup, np.arange(len(soup)).reshape(-1, 3)).save(tmp_path / "soup.vtp")
     (tmp_path / "other.json").write_text('{"format": "something else"}')
@@ -240,6 +241,10 @@ CASES = {
                            lambda d: pverosion.repair(_sphere(), tolerance=-1.0)),
     "missing second mesh": (["boolean", "sphere.vtp", "missing.vtp", "-o", "out.vtp"], r"no such file: missing.vtp",
                             None),
+    "flat closed mesh, repair": (["repair", "flat.vtp", "-o", "out.vtp"], r"encloses no volume",
+                                 lambda d: pverosion.repair(pv.read(d / "flat.vtp"))),
+    "flat closed mesh B": (["boolean", "sphere.vtp", "flat.vtp", "-o", "out.vtp"], r"mesh B encloses no volume",
+                           lambda d: pverosion.boolean(_sphere(), pv.read(d / "flat.vtp"))),
     "non-manifold mesh B": (["boolean", "sphere.vtp", "fan.vtp", "-o", "out.vtp"], r"mesh B must be closed",
                             lambda d: pverosion.boolean(_sphere(), pv.read(d / "fan.vtp"))),
     "NaN points, mesh B": (["boolean", "sphere.vtp", "nan.vtp", "-o", "out.vtp"], r"mesh B: .*NaN or infinite",

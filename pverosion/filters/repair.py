@@ -72,6 +72,8 @@ def _closed_operand(mesh, orientation: str, what: str) -> tuple[np.ndarray, np.n
     if orientation == "outward":
         faces = outward_parts(points, faces)
     volume = signed_volume(points, faces)  # about the centroid: far from the origin, about it the sum cancels
+    if volume == 0.0:
+        raise InvalidMeshError(f"{what} encloses no volume: its points lie in a plane or on a line, or coincide")
     if volume < 0.0:
         raise InvalidMeshError(f"{what} encloses a negative volume ({volume:.6g}): its faces point inward "
                                "(use orientation='outward' or reverse them)")
