@@ -95,6 +95,7 @@ def inputs(tmp_path) -> Path:
     pv.PolyData.from_regular_faces(_sphere().points, np.vstack([faces, faces[:3, ::-1]])).save(
         tmp_path / "duplicate.vtp")
     pv.PolyData.from_regular_faces(_sphere().points * [1.0, 1.0, 0.0], faces).save(tmp_path / "flat.vtp")
+    pv.PolyData.from_regular_faces(np.zeros_like(_sphere().points), faces).save(tmp_path / "collapsed.vtp")
     soup = _sphere().points[faces].reshape(-1, 3)  # every triangle with its own three points, as an STL file holds them
     pv.PolyData.from_regular_faces(soup, np.arange(len(soup)).reshape(-1, 3)).save(tmp_path / "soup.vtp")
     (tmp_path / "other.json").write_text('{"format": "something else"}')
@@ -150,6 +151,8 @@ CASES = {
                       lambda d: pverosion.curvature(pv.read(d / "quads.vtp"))),
     "non-manifold": (["weather", "fan.vtp", "-o", "out.vtp"], r"non-manifold edges",
                      lambda d: pverosion.weather(pv.read(d / "fan.vtp"))),
+    "collapsed mesh, curvature": (["curvature", "collapsed.vtp", "-o", "out.vtp"], r"mesh has no area",
+                                  lambda d: pverosion.curvature(pv.read(d / "collapsed.vtp"))),
     "triangle soup, curvature": (["curvature", "soup.vtp", "-o", "out.vtp"], r"share a vertex.*mesh\.clean\(\)",
                                  lambda d: pverosion.curvature(pv.read(d / "soup.vtp"))),
     "triangle soup, weather": (["weather", "soup.vtp", "-o", "out.vtp"], r"unwelded triangle soup",

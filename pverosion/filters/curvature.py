@@ -17,6 +17,7 @@ from pverosion.kernels.curvature.normalize import NORMALIZATIONS, normalize_curv
 from pverosion.kernels.curvature.operator import CurvatureOperator, principal_curvatures
 from pverosion.kernels.mesh.locality import locality_renumbering
 from pverosion.kernels.mesh.orientation import ORIENTATIONS, orient_sorted
+from pverosion.kernels.validation import InvalidMeshError
 
 __all__ = ["Curvature"]
 
@@ -71,6 +72,9 @@ class Curvature(ErosionFilter):
             n_flipped = oriented.n_flipped
             operator = CurvatureOperator.from_sorted(oriented.faces, len(points), renumbering=renumbering)
             result = operator(points)
+        if not result.point_areas.any():
+            raise InvalidMeshError("mesh has no area: every triangle is degenerate (its points lie on a line or "
+                                   "coincide), so it has no curvature")
         out.ShallowCopy(inp)
         if n_flipped:
             replace_triangles(out, oriented.input_faces(faces))
