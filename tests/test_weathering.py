@@ -535,3 +535,29 @@ def test_filled_holes_weather_alike_wherever_the_model_sits(bunny):
     assert step > 1e-4 * size  # the step did move the surface
     for far in moved[1:]:
         assert np.abs(far - moved[0]).max() <= 1e-8 * size  # rounding of the coordinates 1e5 units out: 1e-10
+
+
+def test_vertex_and_line_cells_follow_the_collapsed_vertices():
+    """Vertex and line cells of the input name the same input points after edges were collapsed."""
+    sphere = pv.Sphere(theta_resolution=24, phi_resolution=24).triangulate().clean()
+    n = sphere.n_points
+    lines = np.array([2, n - 2, n - 1, 3, 0, 1, 2, 2, 5, 9])
+    verts = np.array([1, n - 1, 1, 0, 1, 7])
+    mesh = pv.PolyData(sphere.points, faces=sphere.faces, lines=lines, verts=verts)
+    mesh.point_data["input_id"] = np.arange(n)
+    out = pverosion.weather(mesh, iterations=10, min_edge_ratio=0.9)
+    assert out.n_points < n / 2  # most vertices were collapsed
+    source = out.point_data["input_id"]
+    for kind, given in (("lines", lines), ("verts", verts)):
+        cells, kept = getattr(out, kind), []
+        k = 0
+        while k < len(cells):
+            ids = cells[k + 1:k + 1 + cells[k]]
+            assert ids.max() < out.n_points
+            kept.append(tuple(source[ids]))
+            k += cells[k] + 1
+        original, k = [], 0
+        while k < len(given):
+            original.append(tuple(given[k + 1:k + 1 + given[k]]))
+            k += given[k] + 1
+        assert set(kept) == {c for c in original if set(c) <= set(source.tolist())}

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 from vtkmodules.util import numpy_support
-from vtkmodules.vtkCommonCore import vtkPoints
+from vtkmodules.vtkCommonCore import vtkIdTypeArray, vtkPoints
+from vtkmodules.vtkCommonDataModel import vtkCellArray
 
 from pverosion.filters.base import (
     TimeSteppedFilter,
@@ -29,6 +30,39 @@ from pverosion.kernels.validation import InvalidMeshError
 __all__ = ["MeshSolverFilter", "mesh_solver_output", "output_rows"]
 
 
+def _renumbered_cells(cells: vtkCellArray, ids: np.ndarray, n_input: int) -> vtkCellArray:
+    """The cells (vertices or lines) of ``cells`` in the numbering of the surviving input vertices ``ids``.
+
+    Parameters
+    ----------
+    cells : vtkCellArray
+        Cells over the input's ``n_input`` points.
+    ids : numpy.ndarray, shape (V',)
+        Input index of each output vertex.
+    n_input : int
+        Number of input points.
+
+    Returns
+    -------
+    vtkCellArray
+        The cells whose points all survive, renumbered; the others are dropped.
+    """
+    offsets = numpy_support.vtk_to_numpy(cells.GetOffsetsArray()).astype(np.int64)
+    connectivity = numpy_support.vtk_to_numpy(cells.GetConnectivityArray()).astype(np.int64)
+    new_index = np.full(n_input, -1, dtype=np.int64)
+    new_index[ids] = np.arange(len(ids))
+    mapped = new_index[connectivity]
+    sizes = np.diff(offsets)
+    cell_of = np.repeat(np.arange(len(sizes)), sizes)
+    keep = np.bincount(cell_of[mapped < 0], minlength=len(sizes)) == 0
+    id_type = vtkIdTypeArray().GetDataType()
+    kept_offsets = np.concatenate([[0], np.cumsum(sizes[keep])])
+    result = vtkCellArray()
+    result.SetData(numpy_support.numpy_to_vtk(kept_offsets, deep=True, array_type=id_type),
+                   numpy_support.numpy_to_vtk(mapped[keep[cell_of]], deep=True, array_type=id_type))
+    return result
+
+
 def output_rows(solver: GuardedMeshSolver, canonical: CanonicalMesh | None) -> np.ndarray | None:
     """Which of the solver's vertices each output point is: None for the solver's order.
 
@@ -45,7 +79,8 @@ def mesh_solver_output(solver: GuardedMeshSolver, source, out, *, prefix: str = 
                        canonical: CanonicalMesh | None = None) -> None:
     """Fill vtkPolyData ``out`` with the solver's current mesh and its arrays.
 
-    Point arrays of ``source`` are carried to the surviving vertices. Adds
+    Point arrays of ``source`` are carried to the surviving vertices, and so
+    are its vertex and line cells (those that lost a point are dropped). Adds
     ``mean_curvature``, ``displacement`` (cumulative vector), ``erosion_depth``
     (cumulative displacement into the original surface, along the original
     inward normal) and, as field data, one ``<prefix>_<statistic>`` series
@@ -66,6 +101,11 @@ def mesh_solver_output(solver: GuardedMeshSolver, source, out, *, prefix: str = 
     out.SetPoints(points)
     replace_triangles(out, solver.faces if canonical is None or rows is None else canonical.caller_faces(solver.faces))
     ids = solver.ids if canonical is None else canonical.renumbering.order[solver.ids]  # the caller's vertices
+    n_input = source.GetNumberOfPoints()
+    if rows is None and (canonical is not None or len(ids) != n_input):
+        # vertices were collapsed (or are in the solver's numbering): the input's vertex and line cells follow them
+        out.SetVerts(_renumbered_cells(source.GetVerts(), ids, n_input))
+        out.SetLines(_renumbered_cells(source.GetLines(), ids, n_input))
     src_pd, out_pd = source.GetPointData(), out.GetPointData()
     out_pd.Initialize()
     for k in range(src_pd.GetNumberOfArrays()):
