@@ -722,18 +722,22 @@ def check_proper_faces(faces: np.ndarray) -> None:
                                f"copies: {copies[:5].tolist()}): remove the duplicates first")
 
 
-def check_welded(faces: np.ndarray) -> None:
+def check_welded(faces: np.ndarray, n_points: int) -> None:
     """``InvalidMeshError`` if the triangles share no vertex: a triangle soup whose coincident points were not merged.
 
     Such a mesh (an STL file read without merging its points, or a PLY or
     OBJ written from one) has only boundary edges, so every curvature is zero
     and nothing would move; the message names the cause and the fix instead.
-    A single triangle is accepted.
+    A single triangle is accepted. Only a mesh with at least three points
+    per triangle can be one, so a welded mesh (about half a point per
+    triangle) costs no pass over its faces.
 
     Parameters
     ----------
     faces : numpy.ndarray, shape (F, 3)
         Triangles as vertex indices.
+    n_points : int
+        Number of points of the mesh.
 
     Raises
     ------
@@ -741,7 +745,7 @@ def check_welded(faces: np.ndarray) -> None:
         If there are two or more triangles and no vertex is used by two of them.
     """
     faces = np.asarray(faces)
-    if len(faces) > 1 and len(np.unique(faces)) == faces.size:
+    if len(faces) > 1 and n_points >= faces.size and len(np.unique(faces)) == faces.size:
         raise InvalidMeshError(f"no two of the mesh's {len(faces)} triangles share a vertex (an unwelded triangle "
                                "soup, as in an STL file): merge the coincident points first (mesh.clean())")
 

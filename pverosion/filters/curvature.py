@@ -56,7 +56,7 @@ class Curvature(ErosionFilter):
     def execute(self, inp, out) -> None:
         """Compute the curvature arrays of ``inp`` into ``out``."""
         points, faces = polydata_triangle_mesh(inp)
-        check_welded(faces)
+        check_welded(faces, len(points))
         mode = self.get_option("orientation")
         if mode == "keep":
             n_flipped = 0

@@ -152,7 +152,7 @@ class MeshSolverFilter(TimeSteppedFilter):
         """
         points, faces = polydata_triangles(inp)
         check_proper_faces(faces)
-        check_welded(faces)
+        check_welded(faces, len(points))
         topology = edge_topology(np.asarray(faces, np.int64), len(points))
         if topology.n_nonmanifold_edges:
             raise InvalidMeshError(f"mesh has {topology.n_nonmanifold_edges} non-manifold edges (shared by more than "

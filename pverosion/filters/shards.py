@@ -251,7 +251,7 @@ def _closed_outward(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, 
         Degenerate or duplicated faces, a triangle soup, or boundary edges (an open mesh).
     """
     check_proper_faces(faces)
-    check_welded(faces)
+    check_welded(faces, len(points))
     n_open = len(boundary_edges(np.asarray(faces, np.int64), len(points)))
     if n_open:
         raise InvalidMeshError(f"the mesh must be closed: it has {n_open} boundary edges (fill its holes first, "
