@@ -136,3 +136,17 @@ def test_results_do_not_depend_on_the_order_of_vertices_and_faces(model):
     np.testing.assert_array_equal(first["tag"], np.arange(len(points)))
     triangles = {tuple(np.roll(f, -int(np.argmin(f)))) for f in order[second.regular_faces]}
     assert triangles == {tuple(np.roll(f, -int(np.argmin(f)))) for f in first.regular_faces}
+
+
+def test_the_default_particle_radius_does_not_depend_on_the_order_of_vertices_and_faces():
+    """Half the mean edge length, summed in the numbering of the solver: the same number for any input order."""
+    slab = _slab()
+    points, faces = np.asarray(slab.points, np.float64), slab.regular_faces
+    radii = set()
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        order = rng.permutation(len(points))
+        shuffled = np.argsort(order)[faces][rng.permutation(len(faces))]
+        mesh = pv.PolyData.from_regular_faces(points[order], np.roll(shuffled, seed % 3, axis=1))
+        radii.add(HydraulicErosion(iterations=0, emitter=EMITTER, drain=DRAIN)._new_solver(mesh).fluid.params.radius)
+    assert len(radii) == 1

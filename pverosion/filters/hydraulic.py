@@ -262,15 +262,15 @@ class HydraulicErosion(MeshSolverFilter):
         elif holes:
             raise InvalidMeshError(f"hydraulic erosion needs a closed mesh; the input has {holes} boundary edges "
                                    "(holes): fill them first, or set close_holes=True to close them")
-        radius = self.get_option("radius") or 0.5 * average_edge_length(np.asarray(points, np.float64),
-                                                                        np.asarray(faces, np.int64))
+        self._canonical = canonical = canonical_mesh(np.asarray(points, np.float64), np.asarray(faces, np.int64))
+        local_points = canonical.renumbering.to_local(np.asarray(points, np.float64))
+        radius = self.get_option("radius") or 0.5 * average_edge_length(local_points, canonical.faces)
         fluid = FluidParameters(
             radius=radius, gravity=tuple(parse_numbers(self.get_option("gravity"), "gravity", count=3)),
             time_step=self.get_option("time_step") or None, substeps=self.get_option("substeps"),
             solver_iterations=self.get_option("solver_iterations"), viscosity=self.get_option("viscosity"),
             friction=self.get_option("friction"), max_particles=self.get_option("max_particles"))
         _check_resources(fluid, emitters, len(points), len(faces))
-        self._canonical = canonical = canonical_mesh(np.asarray(points, np.float64), np.asarray(faces, np.int64))
         erodibility = renumbered_erodibility(check_erodibility(self._erodibility_for(inp), len(points)),
                                              canonical.renumbering.order)
         domain = None
@@ -278,7 +278,7 @@ class HydraulicErosion(MeshSolverFilter):
             box = parse_numbers(self.get_option("domain"), "domain", count=6)
             domain = (box[:3], box[3:])
         return HydraulicSolver(
-            canonical.renumbering.to_local(np.asarray(points, np.float64)), canonical.faces, fluid=fluid, emitters=emitters, drains=drains, domain=domain, walls=self.get_option("walls"),
+            local_points, canonical.faces, fluid=fluid, emitters=emitters, drains=drains, domain=domain, walls=self.get_option("walls"),
             model=self.get_option("model"), power=self.get_option("power"),
             normalization=self.get_option("normalization"),
             step_divisor=self.get_option("step_divisor"), influence=self.get_option("influence"),
