@@ -245,6 +245,14 @@ def _cli_message(message: str, filter_cls: type[ErosionFilter] | None) -> str:
     return message
 
 
+def _size(result) -> tuple[int, int]:
+    """Points and cells of a dataset, or of all the datasets in a multiblock."""
+    if hasattr(result, "recursive_iterator"):
+        blocks = [block for block in result.recursive_iterator() if block is not None]
+        return sum(block.n_points for block in blocks), sum(block.n_cells for block in blocks)
+    return result.n_points, result.n_cells
+
+
 def _run_stage(args: argparse.Namespace) -> None:
     from pverosion._frontend import apply_filter
     from pverosion.io import read_image, read_mesh, write_atomic
@@ -270,7 +278,9 @@ def _run_stage(args: argparse.Namespace) -> None:
         n_points, n_cells = mesh.n_points, mesh.n_cells
     elapsed = time.perf_counter() - start
     write_atomic(result, args.output)
-    print(f"{filter_cls.command_name()}: {n_points} points, {n_cells} cells in {elapsed:.3f} s -> {args.output}")
+    out_points, out_cells = _size(result)
+    print(f"{filter_cls.command_name()}: {n_points} points, {n_cells} cells -> {out_points} points, {out_cells} cells "
+          f"in {elapsed:.3f} s -> {args.output}" + (" (the result is empty)" if out_points == 0 else ""))
     if args.screenshot and filter_cls.OUTPUT_TYPE == "vtkPolyData" and result.n_cells == 0:
         print("screenshot skipped: the result is empty")
     elif args.screenshot:

@@ -350,3 +350,20 @@ def test_a_model_far_from_the_origin_gives_the_same_result_moved(sphere_a, spher
     near, far = run(*small), run(*moved)
     np.testing.assert_array_equal(far.regular_faces, near.regular_faces)
     np.testing.assert_allclose(np.asarray(far.points) - shift, near.points, rtol=0.0, atol=1e-9)
+
+
+def test_the_command_line_reports_the_output_size_and_an_empty_result(sphere_a, tmp_path, capsys):
+    """The summary line gives the input's and the output's sizes: an empty Boolean (exit 0, as it is a valid
+    result) is said to be empty instead of showing only the input's size."""
+    far = pv.Icosphere(radius=0.5, nsub=2, center=(5.0, 0.0, 0.0))
+    a, b = tmp_path / "a.vtp", tmp_path / "b.vtp"
+    sphere_a.save(a)
+    far.save(b)
+    n_in = (sphere_a.n_points + far.n_points, sphere_a.n_cells + far.n_cells)
+    assert main(["boolean", str(a), str(b), "--operation", "intersection", "-o", str(tmp_path / "i.vtp")]) == 0
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    assert f"{n_in[0]} points, {n_in[1]} cells -> 0 points, 0 cells" in line and "the result is empty" in line
+    assert main(["boolean", str(a), str(b), "--operation", "union", "-o", str(tmp_path / "u.vtp")]) == 0
+    union = pv.read(tmp_path / "u.vtp")
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    assert f"-> {union.n_points} points, {union.n_cells} cells in" in line and "empty" not in line
