@@ -229,3 +229,28 @@ def test_mean_curvature_operator_equals_the_full_estimate(nsub, shuffle):
     assert np.array_equal(given.mean, mean.mean)
     one, many = one_and_all_threads(lambda: MeanCurvatureOperator(faces, len(p))(p))
     assert np.array_equal(one.mean, many.mean)
+
+
+def test_a_mesh_with_edges_of_more_than_two_faces_is_warned_about(tmp_path, capsys):
+    """A fin face on a sphere's edge shifts the curvature of its corners (H 0.38 instead of 1 at the fin's
+    edge): the result is given, with a warning naming the cause, from every front end."""
+    import warnings
+
+    from pverosion.cli import main
+
+    sphere = pv.Icosphere(radius=1.0, nsub=3)
+    points, faces = np.asarray(sphere.points, np.float64), sphere.regular_faces
+    a, b = faces[0, 0], faces[0, 1]
+    tip = 0.5 * (points[a] + points[b]) * 1.5
+    fin = pv.PolyData.from_regular_faces(np.vstack([points, tip]), np.vstack([faces, [[b, a, len(points)]]]))
+    with pytest.warns(UserWarning, match="3 face sides lie on edges shared by more than two faces"):
+        result = pverosion.curvature(fin)
+    assert result.n_points == fin.n_points
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a closed manifold, and an open one, are not warned about
+        pverosion.curvature(sphere)
+        pverosion.curvature(sphere.remove_cells([0, 1, 2]))
+    path = tmp_path / "fin.vtp"
+    fin.save(path)
+    assert main(["curvature", str(path), "-o", str(tmp_path / "out.vtp")]) == 0
+    assert "warning: curvature: 3 face sides lie on edges shared by more than two faces" in capsys.readouterr().err

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from pverosion.filters.base import (
@@ -70,6 +72,10 @@ class Curvature(ErosionFilter):
             else:
                 oriented = orient_sorted(renumbering.to_local(points), renumbering.faces(faces), mode=mode)
             n_flipped = oriented.n_flipped
+            if oriented.n_nonmanifold:
+                warnings.warn(f"curvature: {oriented.n_nonmanifold} face sides lie on edges shared by more than two "
+                              "faces; the curvature near them mixes the surfaces that meet there (pverosion repair "
+                              "separates them)", UserWarning, stacklevel=2)
             operator = CurvatureOperator.from_sorted(oriented.faces, len(points), renumbering=renumbering)
             result = operator(points)
         if not result.point_areas.any():

@@ -491,6 +491,9 @@ class SortedOrientation:
         Edge-connected component of each sorted face.
     n_flipped : int
         Number of reversed faces.
+    n_nonmanifold : int
+        Number of half-edges on edges with more than two faces (0 on a manifold mesh); the orientation does not
+        propagate across them.
     """
 
     order: np.ndarray
@@ -498,6 +501,7 @@ class SortedOrientation:
     flip: np.ndarray
     component: np.ndarray
     n_flipped: int
+    n_nonmanifold: int = 0
 
     def input_flip(self) -> np.ndarray:
         """Mask (F,) of the reversed faces in the input order."""
@@ -540,7 +544,9 @@ def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward
     if turn.any():
         flip ^= turn[component]
     n_flipped = int(np.count_nonzero(flip))
-    return SortedOrientation(order, _apply(local, flip) if n_flipped else local, flip, component, n_flipped)
+    n_nonmanifold = int(np.count_nonzero(others >= 2)) if len(others) and others.max() >= 2 else 0
+    return SortedOrientation(order, _apply(local, flip) if n_flipped else local, flip, component, n_flipped,
+                             n_nonmanifold)
 
 
 def _unsort(values: np.ndarray, order: np.ndarray) -> np.ndarray:
