@@ -150,3 +150,24 @@ def test_the_default_particle_radius_does_not_depend_on_the_order_of_vertices_an
         mesh = pv.PolyData.from_regular_faces(points[order], np.roll(shuffled, seed % 3, axis=1))
         radii.add(HydraulicErosion(iterations=0, emitter=EMITTER, drain=DRAIN)._new_solver(mesh).fluid.params.radius)
     assert len(radii) == 1
+
+
+def test_closing_holes_keeps_the_inputs_point_arrays_and_gives_the_new_points_none():
+    """With close_holes the surface has points the input has not: the input's point arrays are carried to its own
+    points, and the added ones get NaN (0 in integer arrays); the run failed with an IndexError."""
+    slab = _slab()
+    centres = slab.cell_centers().points
+    bottom = (centres[:, 2] < -0.49) & (np.abs(centres[:, 0]) < 1.2) & (np.abs(centres[:, 1]) < 1.2)
+    open_slab = slab.remove_cells(np.flatnonzero(bottom)).clean()
+    assert open_slab.n_open_edges > 0
+    n = open_slab.n_points
+    open_slab.point_data["tag"] = np.arange(n, dtype=float)
+    open_slab.point_data["label"] = np.arange(n, dtype=np.int32) + 1
+    mesh = pverosion.hydraulic_erosion(open_slab, iterations=3, close_holes=True, **_options())["mesh"]
+    assert mesh.n_points > n and mesh.n_open_edges == 0  # the hole was closed with new points
+    tag, label = mesh["tag"], mesh["label"]
+    kept = np.isfinite(tag)
+    assert kept.sum() == n and np.array_equal(np.sort(tag[kept]), np.arange(n))
+    np.testing.assert_array_equal(label[kept], tag[kept].astype(np.int32) + 1)
+    assert (label[~kept] == 0).all()
+    np.testing.assert_allclose(np.asarray(mesh.points)[kept], open_slab.points[tag[kept].astype(int)], atol=0.5)

@@ -50,7 +50,8 @@ def _renumbered_cells(cells: vtkCellArray, ids: np.ndarray, n_input: int) -> vtk
     offsets = numpy_support.vtk_to_numpy(cells.GetOffsetsArray()).astype(np.int64)
     connectivity = numpy_support.vtk_to_numpy(cells.GetConnectivityArray()).astype(np.int64)
     new_index = np.full(n_input, -1, dtype=np.int64)
-    new_index[ids] = np.arange(len(ids))
+    from_input = ids < n_input  # the others were added (holes closed): no input cell uses them
+    new_index[ids[from_input]] = np.flatnonzero(from_input)
     mapped = new_index[connectivity]
     sizes = np.diff(offsets)
     cell_of = np.repeat(np.arange(len(sizes)), sizes)
@@ -61,6 +62,15 @@ def _renumbered_cells(cells: vtkCellArray, ids: np.ndarray, n_input: int) -> vtk
     result.SetData(numpy_support.numpy_to_vtk(kept_offsets, deep=True, array_type=id_type),
                    numpy_support.numpy_to_vtk(mapped[keep[cell_of]], deep=True, array_type=id_type))
     return result
+
+
+def _with_missing_row(values: np.ndarray) -> np.ndarray:
+    """``values`` (N, ...) and one more row for the points the input does not have (holes closed by the stage):
+    NaN, or 0 for integers."""
+    missing = np.zeros((1, *values.shape[1:]), values.dtype)
+    if np.issubdtype(values.dtype, np.floating):
+        missing[:] = np.nan
+    return np.concatenate([values, missing])
 
 
 def output_rows(solver: GuardedMeshSolver, canonical: CanonicalMesh | None) -> np.ndarray | None:
@@ -79,8 +89,10 @@ def mesh_solver_output(solver: GuardedMeshSolver, source, out, *, prefix: str = 
                        canonical: CanonicalMesh | None = None) -> None:
     """Fill vtkPolyData ``out`` with the solver's current mesh and its arrays.
 
-    Point arrays of ``source`` are carried to the surviving vertices, and so
-    are its vertex and line cells (those that lost a point are dropped). Adds
+    Point arrays of ``source`` are carried to the surviving vertices (points
+    the stage added, where it closed holes, get NaN, or 0 in integer
+    arrays), and so are its vertex and line cells (those that lost a point
+    are dropped). Adds
     ``mean_curvature``, ``displacement`` (cumulative vector), ``erosion_depth``
     (cumulative displacement into the original surface, along the original
     inward normal) and, as field data, one ``<prefix>_<statistic>`` series
@@ -112,8 +124,9 @@ def mesh_solver_output(solver: GuardedMeshSolver, source, out, *, prefix: str = 
         arr = src_pd.GetAbstractArray(k)
         if arr is None or arr.GetName() is None or not hasattr(arr, "GetNumberOfComponents"):
             continue
-        values = numpy_support.vtk_to_numpy(arr)
-        carried = numpy_support.numpy_to_vtk(np.ascontiguousarray(ordered(values[ids])), deep=True)
+        values = _with_missing_row(numpy_support.vtk_to_numpy(arr))
+        carried = numpy_support.numpy_to_vtk(np.ascontiguousarray(ordered(values[np.minimum(ids, n_input)])),
+                                             deep=True)
         carried.SetName(arr.GetName())
         out_pd.AddArray(carried)
     if len(solver.faces) != source.GetNumberOfCells() or (canonical is not None and rows is None):
