@@ -20,9 +20,8 @@ from pverosion.filters.base import (
     parse_numbers,
     set_field_value,
     set_multiblock,
-    set_point_array,
 )
-from pverosion.filters.mesh_solver import MeshSolverFilter, mesh_solver_output, output_rows
+from pverosion.filters.mesh_solver import MeshSolverFilter, mesh_solver_output
 from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS
 from pverosion.kernels.fluid.particle_fluid import Drain, Emitter, FluidParameters
 from pverosion.kernels.hydraulic.erosion import MODELS, HydraulicSolver, ShearParameters
@@ -278,7 +277,8 @@ class HydraulicErosion(MeshSolverFilter):
             box = parse_numbers(self.get_option("domain"), "domain", count=6)
             domain = (box[:3], box[3:])
         return HydraulicSolver(
-            local_points, canonical.faces, fluid=fluid, emitters=emitters, drains=drains, domain=domain, walls=self.get_option("walls"),
+            local_points, canonical.faces, fluid=fluid, emitters=emitters, drains=drains, domain=domain,
+            walls=self.get_option("walls"),
             model=self.get_option("model"), power=self.get_option("power"),
             normalization=self.get_option("normalization"),
             step_divisor=self.get_option("step_divisor"), influence=self.get_option("influence"),
@@ -291,10 +291,8 @@ class HydraulicErosion(MeshSolverFilter):
         if self.requested_step() == self.get_option("iterations"):  # judged on the whole run, not its first steps
             _warn_without_water(solver)
         mesh = vtkPolyData()
-        mesh_solver_output(solver, inp, mesh, prefix="hydraulic", canonical=self._canonical)
-        rows = output_rows(solver, self._canonical)
-        for name, values in (("f_distance", solver.f_distance), ("pending_sediment", solver.pending)):
-            set_point_array(mesh, name, values if rows is None else values[rows])
+        mesh_solver_output(solver, inp, mesh, prefix="hydraulic", canonical=self._canonical,
+                           point_arrays={"f_distance": solver.f_distance, "pending_sediment": solver.pending})
         set_field_value(mesh, "model", solver.model)
         set_field_value(mesh, "time", solver.fluid.time)
         set_multiblock(out, pv.MultiBlock({"mesh": pv.wrap(mesh), "particles": particles_polydata(solver)}))

@@ -7,6 +7,8 @@ fills its output mesh.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonCore import vtkIdTypeArray, vtkPoints
@@ -80,13 +82,16 @@ def output_rows(solver: GuardedMeshSolver, canonical: CanonicalMesh | None) -> n
     gives its output in the caller's numbering while it has the caller's
     vertices and faces (no collapse, no topology repair), else in its own.
     """
-    if canonical is None or solver.collapses or solver.repairs or len(solver.points) != len(canonical.renumbering.order):
+    if canonical is None or solver.collapses or solver.repairs:
+        return None
+    if len(solver.points) != len(canonical.renumbering.order):
         return None
     return canonical.renumbering.rank
 
 
 def mesh_solver_output(solver: GuardedMeshSolver, source, out, *, prefix: str = "weathering",
-                       canonical: CanonicalMesh | None = None) -> None:
+                       canonical: CanonicalMesh | None = None,
+                       point_arrays: Mapping[str, np.ndarray] | None = None) -> None:
     """Fill vtkPolyData ``out`` with the solver's current mesh and its arrays.
 
     Point arrays of ``source`` are carried to the surviving vertices (points
@@ -100,7 +105,8 @@ def mesh_solver_output(solver: GuardedMeshSolver, source, out, *, prefix: str = 
     every stage built on :class:`~pverosion.kernels.solver.mesh_evolution.GuardedMeshSolver`.
     A solver built on ``canonical`` (the :func:`~pverosion.kernels.mesh.locality.canonical_mesh`
     of ``source``) has its output put back in the caller's numbering where
-    :func:`output_rows` allows.
+    :func:`output_rows` allows. ``point_arrays`` are more per-vertex arrays
+    (V',) or (V', K) of the solver, by name, put in the output's order.
     """
     rows = output_rows(solver, canonical)
 
@@ -134,6 +140,8 @@ def mesh_solver_output(solver: GuardedMeshSolver, source, out, *, prefix: str = 
     set_point_array(out, "mean_curvature", ordered(solver.mean_curvature()))
     set_point_array(out, "displacement", ordered(solver.displacement))
     set_point_array(out, "erosion_depth", ordered(solver.erosion_depth()))
+    for name, values in (point_arrays or {}).items():
+        set_point_array(out, name, ordered(values))
     out_pd.SetActiveScalars("mean_curvature")
     for name, series in solver.statistics.items():
         set_field_value(out, f"{prefix}_{name}", series)
