@@ -8,6 +8,7 @@ from conftest import assert_filter_equals_kernel, height_field, icosphere, one_a
 import pverosion
 from pverosion.examples import load_cylinder, load_torus
 from pverosion.kernels import InvalidMeshError, principal_curvatures
+from pverosion.kernels._scatter import CHUNKS
 from pverosion.kernels.curvature.operator import CurvatureOperator, CurvatureTracker
 
 
@@ -195,6 +196,36 @@ def test_operator_from_sorted_faces_equals_the_one_built_from_any_order():
     a = CurvatureOperator.from_sorted(ordered, s.n_points)(moved)
     b = CurvatureOperator(faces, s.n_points)(moved)
     assert np.array_equal(a.k1, b.k1) and np.array_equal(a.direction2, b.direction2)
+
+
+@pytest.mark.parametrize("order", ["sorted", "shuffled"])
+def test_operator_on_faces_in_any_order_agrees_with_per_face_sums(order):
+    """The operator adds into one accumulator whose rows the face chunks own, and adds the corners outside them
+    afterwards: the normals and areas equal per-face sums made with numpy, and the results do not depend on
+    the thread count."""
+    s = icosphere(1.0, 4)
+    rng = np.random.default_rng(8)
+    p = np.asarray(s.points) * (1.0 + 0.05 * rng.random((s.n_points, 1)))
+    faces = s.regular_faces.astype(np.int64)
+    sort = np.argsort(faces.min(axis=1), kind="stable") if order == "sorted" else rng.permutation(len(faces))
+    faces = faces[sort]
+    op = CurvatureOperator.from_sorted(faces, len(p))
+    result = op(p)
+    owned = op._owned[0]
+    chunk = np.arange(len(faces)) * CHUNKS // len(faces)  # the chunk of each face (chunk_range)
+    inside = (faces >= owned.owners[chunk][:, None]) & (faces < owned.owners[chunk + 1][:, None])
+    assert owned.n_outside == np.count_nonzero(~inside) and np.all(np.diff(owned.owners) >= 0)
+    assert 0 < owned.n_outside < faces.size  # both ways of adding are taken
+    a, b, e = (p[faces[:, k]] - p[faces[:, j]] for j, k in ((0, 1), (1, 2), (2, 0)))
+    n = np.cross(a, b)
+    la, lb, le = (np.einsum("ij,ij->i", x, x) for x in (a, b, e))
+    total = np.zeros_like(p)
+    for k, w in enumerate((1 / (la * le), 1 / (la * lb), 1 / (lb * le))):
+        np.add.at(total, faces[:, k], w[:, None] * n)
+    np.testing.assert_allclose(result.normals, total / np.linalg.norm(total, axis=1)[:, None], rtol=0, atol=1e-13)
+    assert np.isclose(result.point_areas.sum(), 0.5 * np.linalg.norm(n, axis=1).sum(), rtol=1e-13)
+    one, many = one_and_all_threads(lambda: CurvatureOperator.from_sorted(faces, len(p))(p))
+    assert all(np.array_equal(x, y) for x, y in zip(_fields(one), _fields(many)))
 
 
 @pytest.mark.parametrize("orientation", ["outward", "inward", "keep"])

@@ -16,9 +16,9 @@ import numpy as np
 from numba import njit, prange
 
 from pverosion.kernels import _vec3 as v3
-from pverosion.kernels._scatter import CHUNKS, chunk_range, chunk_total
+from pverosion.kernels._scatter import OwnedRows, add_outside, chunk_range, owned_add, owned_rows, owned_start
 from pverosion.kernels._threads import for_chunks, for_ranges
-from pverosion.kernels.mesh.geometry import add_normal_chunk, face_normal_terms, mixed_corner_areas, normalise_range
+from pverosion.kernels.mesh.geometry import face_normal_terms, mixed_corner_areas
 from pverosion.kernels.mesh.locality import Renumbering, morton_renumbering, poor_locality
 from pverosion.kernels.mesh.topology import locality_sorted, vertex_face_incidence
 from pverosion.kernels.validation import InvalidMeshError, as_faces, as_points
@@ -84,19 +84,40 @@ def _tangent_range(normals, tangents, start, stop):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _frame_range(acc, normals, tangents, start, stop):
-    """Unit normals (the chunk sums of ``acc[:, :, :3]``) and first frame tangents of vertices ``start`` to
-    ``stop``; both zero where the sum is."""
+def _normal_chunk(points, faces, acc, owners, outside, spill, spill_rows, c):
+    """Zero the rows chunk ``c`` of the faces owns in ``acc`` (V, 4) and add the Max-weighted normals of its faces
+    to their corners in ``acc[:, :3]`` (:class:`~pverosion.kernels._scatter.OwnedRows`)."""
+    lo, hi, slot = owned_start(acc, owners, outside, c)
+    start, stop = chunk_range(faces.shape[0], c)
+    for f in range(start, stop):
+        _, n, w0, w1, w2 = face_normal_terms(points, faces, f, True)  # weights 0 where the face is skipped
+        for k, w in enumerate((w0, w1, w2)):
+            slot = owned_add(acc, spill, spill_rows, slot, lo, hi, faces[f, k], w * n[0], w * n[1], w * n[2], 0.0)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _unit_sum(acc, i):
+    """The unit vector of ``acc[i, :3]``, or zero where that is zero."""
+    total = (acc[i, 0], acc[i, 1], acc[i, 2])
+    length = v3.norm(total)
+    return v3.scale(total, 1.0 / length) if length > 0.0 else (0.0, 0.0, 0.0)
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _unit_range(acc, normals, start, stop):
+    """Unit normals (the sums ``acc[:, :3]``) of vertices ``start`` to ``stop``; zero where the sum is."""
     for i in range(start, stop):
-        total = (chunk_total(acc, i, 0), chunk_total(acc, i, 1), chunk_total(acc, i, 2))
-        length = v3.norm(total)
-        if length > 0.0:
-            nrm = v3.scale(total, 1.0 / length)
-            v3.store(normals, i, nrm)
-            v3.store(tangents, i, _normal_frame(nrm)[0])
-        else:
-            v3.store(normals, i, (0.0, 0.0, 0.0))
-            v3.store(tangents, i, (0.0, 0.0, 0.0))
+        v3.store(normals, i, _unit_sum(acc, i))
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _frame_range(acc, normals, tangents, start, stop):
+    """:func:`_unit_range` and the first frame tangents of vertices ``start`` to ``stop``; zero where the normal
+    is."""
+    for i in range(start, stop):
+        nrm = _unit_sum(acc, i)
+        v3.store(normals, i, nrm)
+        v3.store(tangents, i, _normal_frame(nrm)[0] if v3.dot(nrm, nrm) != 0.0 else (0.0, 0.0, 0.0))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -218,18 +239,17 @@ def _seen_trace(nrm, nf, trace):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _trace_chunk(points, faces, normals, acc, c):
-    """Zero ``acc[c]`` and add the corner-area-weighted traces of the face tensors of chunk ``c`` of the faces
-    and the weights into ``acc[c, :, :2]``."""
-    acc[c] = 0.0
+def _trace_chunk(points, faces, normals, acc, owners, outside, spill, spill_rows, c):
+    """Zero the rows chunk ``c`` of the faces owns in ``acc`` (V, 4) and add the corner-area-weighted traces of
+    its face tensors and the weights into ``acc[:, :2]`` (:class:`~pverosion.kernels._scatter.OwnedRows`)."""
+    lo, hi, slot = owned_start(acc, owners, outside, c)
     start, stop = chunk_range(faces.shape[0], c)
     for f in range(start, stop):
         w0, w1, w2, ok, _, _, nf, ta, _, tc, n0, n1, n2 = _face_fit(points, faces, normals, f)
         trace = ta + tc
         for k, (w, nrm) in enumerate(((w0, n0), (w1, n1), (w2, n2))):
-            i = faces[f, k]
-            acc[c, i, 0] += w * (_seen_trace(nrm, nf, trace) if ok else 0.0)
-            acc[c, i, 1] += w
+            seen = w * (_seen_trace(nrm, nf, trace) if ok else 0.0)
+            slot = owned_add(acc, spill, spill_rows, slot, lo, hi, faces[f, k], seen, w, 0.0, 0.0)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -237,33 +257,25 @@ def _mean_range(normals, acc, order, mean, area, normals_out, start, stop):
     """Mean curvature (half the averaged trace) and area of vertices ``start`` to ``stop``, stored with their
     normals in the caller's rows ``order[i]``; zero without area or normal, as :func:`_diagonalise` gives."""
     for i in range(start, stop):
-        total = chunk_total(acc, i, 1)
+        total = acc[i, 1]
         row = order[i]
         area[row] = total
         nrm = v3.row(normals, i)
-        mean[row] = 0.0 if total <= 0.0 or v3.dot(nrm, nrm) == 0.0 else 0.5 * (chunk_total(acc, i, 0) / total)
+        mean[row] = 0.0 if total <= 0.0 or v3.dot(nrm, nrm) == 0.0 else 0.5 * (acc[i, 0] / total)
         v3.store(normals_out, row, nrm)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _add_corner(acc, c, i, w, tensor):
-    acc[c, i, 0] += w * tensor[0]
-    acc[c, i, 1] += w * tensor[1]
-    acc[c, i, 2] += w * tensor[2]
-    acc[c, i, 3] += w
-
-
 @njit(cache=True, error_model="numpy", nogil=True)
-def _tensor_chunk(points, faces, normals, tangents, acc, c):
-    """Zero ``acc[c]`` and add the corner-area-weighted face tensors of chunk ``c`` of the faces, in the vertex
-    frames, and the weights into it: (ku, kuv, kv, w) per vertex."""
-    acc[c] = 0.0
+def _tensor_chunk(points, faces, normals, tangents, acc, owners, outside, spill, spill_rows, c):
+    """Zero the rows chunk ``c`` of the faces owns in ``acc`` (V, 4) and add the corner-area-weighted tensors of
+    its faces, in the vertex frames, and the weights: (ku, kuv, kv, w) per vertex
+    (:class:`~pverosion.kernels._scatter.OwnedRows`)."""
+    lo, hi, slot = owned_start(acc, owners, outside, c)
     start, stop = chunk_range(faces.shape[0], c)
     for f in range(start, stop):
         w0, w1, w2, t0, t1, t2 = _face_corners(points, faces, normals, tangents, f)
-        _add_corner(acc, c, faces[f, 0], w0, t0)
-        _add_corner(acc, c, faces[f, 1], w1, t1)
-        _add_corner(acc, c, faces[f, 2], w2, t2)
+        for k, (w, t) in enumerate(((w0, t0), (w1, t1), (w2, t2))):
+            slot = owned_add(acc, spill, spill_rows, slot, lo, hi, faces[f, k], w * t[0], w * t[1], w * t[2], w)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -306,10 +318,10 @@ def _diagonalise(nrm, u, ku, kuv, kv, total):
 @njit(cache=True, error_model="numpy", inline="always")
 def _vertex_curvature(normals, tangents, acc, i, row, k1, k2, d1, d2, area):
     """Average the corner tensors of vertex ``i``, diagonalise them and store the results in ``row``."""
-    total = chunk_total(acc, i, 3)
+    total = acc[i, 3]
     area[row] = total
-    k1[row], k2[row], p1, p2 = _diagonalise(v3.row(normals, i), v3.row(tangents, i), chunk_total(acc, i, 0),
-                                            chunk_total(acc, i, 1), chunk_total(acc, i, 2), total)
+    k1[row], k2[row], p1, p2 = _diagonalise(v3.row(normals, i), v3.row(tangents, i), acc[i, 0], acc[i, 1],
+                                            acc[i, 2], total)
     v3.store(d1, row, p1)
     v3.store(d2, row, p2)
 
@@ -514,7 +526,7 @@ class CurvatureOperator:
     curve of its points (:func:`~pverosion.kernels.mesh.locality.morton_renumbering`);
     every call then evaluates in that numbering and returns the results in
     the caller's vertex order. Results are bit-identical whatever the number
-    of threads. The scratch arrays of a call (about 200 bytes per vertex)
+    of threads. The scratch arrays of a call (about 110 bytes per vertex)
     are kept for the next one, so one operator serves one thread at a time; the
     returned arrays are always fresh. Use it when the points move but the
     faces stay (iterative erosion), or call :func:`principal_curvatures` for
@@ -557,6 +569,7 @@ class CurvatureOperator:
         self._scattered = fcs if poor_locality(fcs, n_vertices) else None
         self.faces = None if self._scattered is not None else locality_sorted(fcs, n_vertices)[1]
         self._scratch: tuple | None = None
+        self._owned: tuple[OwnedRows, np.ndarray, np.ndarray] | None = None
 
     @classmethod
     def from_sorted(cls, faces: np.ndarray, n_vertices: int, *,
@@ -581,6 +594,7 @@ class CurvatureOperator:
         operator._scattered = None
         operator.faces = faces
         operator._scratch = None
+        operator._owned = None
         return operator
 
     def __call__(self, points, *, normals=None) -> CurvatureResult:
@@ -593,14 +607,14 @@ class CurvatureOperator:
     def _evaluate(self, pts: np.ndarray, normals) -> CurvatureResult:
         """The estimate on already validated points (V, 3) float64, in their order."""
         pts, nrm, tangents, acc = self._normals(pts, normals)
-        for_chunks(_tensor_chunk, self.faces.shape[0], pts, self.faces, nrm, tangents, acc)
+        self._scatter(_tensor_chunk, acc, pts, self.faces, nrm, tangents)
         return _vertex_curvatures(nrm, tangents, acc, None if self.renumbering is None else self.renumbering.order)
 
     def _normals(self, pts: np.ndarray, normals, *,
                  tangents: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The points, vertex normals and frame tangents (V, 3) in the local numbering, and the per-chunk sums
-        (CHUNKS, V, 4) to fill; the normals are ``normals`` when given, else Max-weighted. Without
-        ``tangents`` the tangents are not computed (the array is returned unfilled)."""
+        """The points, vertex normals and frame tangents (V, 3) in the local numbering, and the per-vertex sums
+        (V, 4) to fill; the normals are ``normals`` when given, else Max-weighted. Without ``tangents`` the
+        tangents are not computed (the array is returned unfilled)."""
         nrm = None
         if normals is not None:
             nrm = np.ascontiguousarray(normals, dtype=np.float64)
@@ -617,12 +631,11 @@ class CurvatureOperator:
             nrm = None if nrm is None else ren.to_local(nrm, out=local_normals)
         if nrm is None:
             nrm = local_normals if ren is not None else np.empty((self.n_vertices, 3))
-            # Max-weighted normals, as vertex_normals computes them; a Python bool: the same specialisation
-            for_chunks(add_normal_chunk, self.faces.shape[0], pts, self.faces, True, acc)
+            self._scatter(_normal_chunk, acc, pts, self.faces)  # Max-weighted, as vertex_normals computes them
             if tangents:
                 for_ranges(_frame_range, self.n_vertices, acc, nrm, frame)
-            else:  # the kernel of vertex_normals, already compiled where the normals are
-                for_ranges(normalise_range, self.n_vertices, acc, nrm)
+            else:
+                for_ranges(_unit_range, self.n_vertices, acc, nrm)
         elif tangents:
             for_ranges(_tangent_range, self.n_vertices, nrm, frame)
         return pts, nrm, frame, acc
@@ -630,13 +643,23 @@ class CurvatureOperator:
     def _buffers(self) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray, np.ndarray]:
         """The scratch arrays of a call, made by the first and reused by the next ones: the points and
         normals in the local numbering (None without a renumbering), the frame tangents (V, 3) and the
-        per-chunk sums (CHUNKS, V, 4)."""
+        per-vertex sums (V, 4); also the face chunks' :class:`~pverosion.kernels._scatter.OwnedRows` and their
+        slots for the corners outside them, (S, 4) and (S,)."""
         if self._scratch is None:
             n = self.n_vertices
             local = self.renumbering is not None
             rows = (np.empty((n, 3)), np.empty((n, 3))) if local else (None, None)
-            self._scratch = (*rows, np.empty((n, 3)), np.empty((CHUNKS, n, 4)))
+            owned = owned_rows(self.faces, n)
+            self._owned = (owned, np.empty((owned.n_outside, 4)), np.empty(owned.n_outside, np.int64))
+            self._scratch = (*rows, np.empty((n, 3)), np.empty((n, 4)))
         return self._scratch
+
+    def _scatter(self, kernel, acc: np.ndarray, *args) -> None:
+        """Run the face chunks of ``kernel(*args, acc, owners, outside, spill, spill_rows, c)``, which zero their
+        rows of ``acc`` (V, 4) and add into them, then add their corners outside their rows."""
+        owned, spill, spill_rows = self._owned
+        for_chunks(kernel, self.faces.shape[0], *args, acc, owned.owners, owned.outside, spill, spill_rows)
+        add_outside(acc, spill, spill_rows)
 
 
 @dataclass(frozen=True)
@@ -680,7 +703,7 @@ class MeanCurvatureOperator(CurvatureOperator):
 
     def _evaluate(self, pts: np.ndarray, normals) -> MeanCurvatureResult:
         pts, nrm, _, acc = self._normals(pts, normals, tangents=False)
-        for_chunks(_trace_chunk, self.faces.shape[0], pts, self.faces, nrm, acc)
+        self._scatter(_trace_chunk, acc, pts, self.faces, nrm)
         n = self.n_vertices
         ren = self.renumbering
         mean, area = np.empty(n), np.empty(n)
