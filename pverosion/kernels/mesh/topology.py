@@ -366,19 +366,26 @@ _TALLY = 32
 exclusive or of their positions in a vertex's list (under ``3 F``, so under ``2**31`` where the tally is used):
 neither part can carry into the other."""
 
+_NEAR = 4096
+"""Span of vertex indices past a vertex that the tally of :func:`_match_sorted_range` covers (32 KB, in a core's
+cache); the few edges to vertices farther on are matched by comparing them with each other."""
+
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def _match_sorted_range(rows, starts, far_end, far_half, partner, others, start, stop):
     """Twins and edge multiplicities of the half-edges of the edges whose smaller vertex is ``start`` to ``stop``.
 
     The edges of vertex ``v`` to larger vertices are the two at ``v`` of its faces (those with smallest vertex
-    ``v``, sorted rows ``starts[0, v]`` to ``starts[0, v + 1]``) and its far-edge slots. Each end of them tallies
-    its half-edges' count and the exclusive or of their positions, so the twin of a half-edge of a manifold edge
-    is that or with its own position taken out: short passes without data-dependent branches."""
+    ``v``, sorted rows ``starts[0, v]`` to ``starts[0, v + 1]``) and its far-edge slots. Each end less than
+    :data:`_NEAR` past ``v`` tallies its half-edges' count and the exclusive or of their positions, so the twin
+    of a half-edge of a manifold edge is that or with its own position taken out: short passes without
+    data-dependent branches. The ends farther on (a few percent, in an order of spatial locality) are
+    compared with each other."""
     ends = np.empty(16, np.int64)
     halves = np.empty(16, np.int64)
-    tally = np.empty(starts.shape[1] - 1 - start, np.int64)  # per end vertex, offset by ``start``; zero between
-    for e in range(tally.shape[0]):  # a loop: np.zeros would compile one more allocation
+    far = np.empty(16, np.int64)
+    tally = np.empty(_NEAR, np.int64)  # per end, offset by ``v``; zero between vertices
+    for e in range(_NEAR):  # a loop: np.zeros would compile one more allocation
         tally[e] = 0
     low = (1 << _TALLY) - 1
     for v in range(start, stop):
@@ -387,26 +394,42 @@ def _match_sorted_range(rows, starts, far_end, far_half, partner, others, start,
         if size > ends.shape[0]:
             ends = np.empty(2 * size, np.int64)
             halves = np.empty(2 * size, np.int64)
+            far = np.empty(2 * size, np.int64)
         n = 0
         for i in range(first, last):
             j = _lowest_corner(rows[i, 0], rows[i, 1], rows[i, 2])
-            ends[n], halves[n] = rows[i, (j + 1) % 3] - start, 3 * i + j
-            ends[n + 1], halves[n + 1] = rows[i, (j + 2) % 3] - start, 3 * i + (j + 2) % 3
+            ends[n], halves[n] = rows[i, (j + 1) % 3] - v, 3 * i + j
+            ends[n + 1], halves[n + 1] = rows[i, (j + 2) % 3] - v, 3 * i + (j + 2) % 3
             n += 2
         for s in range(starts[1, v], starts[1, v + 1]):
-            ends[n], halves[n] = far_end[s] - start, far_half[s]
+            ends[n], halves[n] = far_end[s] - v, far_half[s]
             n += 1
+        n_far = 0
         for s in range(n):
-            tally[ends[s]] = (tally[ends[s]] + (1 << _TALLY)) ^ s
+            if ends[s] < _NEAR:
+                tally[ends[s]] = (tally[ends[s]] + (1 << _TALLY)) ^ s
+            else:
+                far[n_far] = s
+                n_far += 1
         for s in range(n):
-            x = tally[ends[s]]
-            count = (x >> _TALLY) - 1
+            if ends[s] < _NEAR:
+                x = tally[ends[s]]
+                count = (x >> _TALLY) - 1
+                mate = (x & low) ^ s
+            else:
+                count = 0
+                mate = s
+                for k in range(n_far):
+                    t = far[k]
+                    if t != s and ends[t] == ends[s]:
+                        count += 1
+                        mate = t
             h = halves[s]
             others[h] = count  # 0 on a boundary edge
-            twin = halves[(x & low) ^ s if count == 1 else s]
-            partner[h] = twin if count == 1 else -1  # -1 on a boundary or non-manifold edge
+            partner[h] = halves[mate] if count == 1 else -1  # -1 on a boundary or non-manifold edge
         for s in range(n):
-            tally[ends[s]] = 0
+            if ends[s] < _NEAR:
+                tally[ends[s]] = 0
 
 
 def _sorted_twins_of_triangles(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, ...] | None:
