@@ -18,7 +18,7 @@ from numba import njit, prange
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import OwnedRows, add_outside, chunk_range, owned_add, owned_rows, owned_start
 from pverosion.kernels._threads import for_chunks, for_ranges
-from pverosion.kernels.mesh.geometry import face_normal_terms, mixed_corner_areas
+from pverosion.kernels.mesh.geometry import face_normal_terms, mixed_corner_areas, normal_terms
 from pverosion.kernels.mesh.locality import Renumbering, morton_renumbering, poor_locality
 from pverosion.kernels.mesh.topology import locality_sorted, vertex_face_incidence
 from pverosion.kernels.validation import InvalidMeshError, as_faces, as_points
@@ -83,18 +83,6 @@ def _tangent_range(normals, tangents, start, stop):
         v3.store(tangents, i, _normal_frame(nrm)[0] if v3.dot(nrm, nrm) != 0.0 else (0.0, 0.0, 0.0))
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
-def _normal_chunk(points, faces, acc, owners, outside, spill, spill_rows, c):
-    """Zero the rows chunk ``c`` of the faces owns in ``acc`` (V, 4) and add the Max-weighted normals of its faces
-    to their corners in ``acc[:, :3]`` (:class:`~pverosion.kernels._scatter.OwnedRows`)."""
-    lo, hi, slot = owned_start(acc, owners, outside, c)
-    start, stop = chunk_range(faces.shape[0], c)
-    for f in range(start, stop):
-        _, n, w0, w1, w2 = face_normal_terms(points, faces, f, True)  # weights 0 where the face is skipped
-        for k, w in enumerate((w0, w1, w2)):
-            slot = owned_add(acc, spill, spill_rows, slot, lo, hi, faces[f, k], w * n[0], w * n[1], w * n[2], 0.0)
-
-
 @njit(cache=True, error_model="numpy", inline="always")
 def _unit_sum(acc, i):
     """The unit vector of ``acc[i, :3]``, or zero where that is zero."""
@@ -138,14 +126,23 @@ def _batch_buffers():
 def _gather_corners(points, normals, tangents, faces, ids, first, n, g):
     """Gather the corners of the ``n`` faces from ``first`` on (faces ``ids[first + k]`` when ``ids`` is not
     empty) into ``g`` (27, BATCH): the points of corner ``j`` in rows ``3 j`` to ``3 j + 2``, its normal in rows
-    ``9 + 3 j`` on and its frame tangent in rows ``18 + 3 j`` on (when ``tangents`` has rows)."""
-    for k in range(n):
-        f = ids[first + k] if ids.shape[0] else first + k
-        for j in range(3):
-            i = faces[f, j]
-            for d in range(3):
-                g[3 * j + d, k] = points[i, d]
-                g[9 + 3 * j + d, k] = normals[i, d]
+    ``9 + 3 j`` on (when ``normals`` has rows) and its frame tangent in rows ``18 + 3 j`` on (when ``tangents``
+    has rows)."""
+    if normals.shape[0]:
+        for k in range(n):
+            f = ids[first + k] if ids.shape[0] else first + k
+            for j in range(3):
+                i = faces[f, j]
+                for d in range(3):
+                    g[3 * j + d, k] = points[i, d]
+                    g[9 + 3 * j + d, k] = normals[i, d]
+    else:
+        for k in range(n):
+            f = ids[first + k] if ids.shape[0] else first + k
+            for j in range(3):
+                i = faces[f, j]
+                for d in range(3):
+                    g[3 * j + d, k] = points[i, d]
     if tangents.shape[0]:
         for k in range(n):
             f = ids[first + k] if ids.shape[0] else first + k
@@ -269,7 +266,7 @@ def _tensor_batch(g, ft, n, out):
 def _trace_batch(g, ft, n, out):
     """The traces of the face tensors of a fitted batch, weighted by the corner areas, as seen at each corner: a
     rotation keeps the trace, so it is the face's, or zero where :func:`_tensor_batch` gives a zero tensor.
-    ``out`` (12, BATCH) gets ``(w trace, w)`` of corner ``j`` in rows ``4 j`` and ``4 j + 1``."""
+    ``out`` (12, BATCH) gets ``(w trace, w, 0, 0)`` of corner ``j`` in rows ``4 j`` to ``4 j + 3``."""
     for j in range(3):
         for k in range(n):
             seen = ft[16 + j, k] != 0.0
@@ -277,25 +274,8 @@ def _trace_batch(g, ft, n, out):
             trace = w * (ft[13, k] + ft[15, k])
             out[4 * j, k] = trace if seen else 0.0
             out[4 * j + 1, k] = w
-
-
-@njit(cache=True, error_model="numpy", nogil=True)
-def _trace_chunk(points, faces, normals, acc, owners, outside, spill, spill_rows, c):
-    """Zero the rows chunk ``c`` of the faces owns in ``acc`` (V, 4) and add the corner-area-weighted traces of
-    its face tensors and the weights into ``acc[:, :2]`` (:class:`~pverosion.kernels._scatter.OwnedRows`)."""
-    lo, hi, slot = owned_start(acc, owners, outside, c)
-    start, stop = chunk_range(faces.shape[0], c)
-    g, ft, out = _batch_buffers()
-    every, no_tangents = np.empty(0, np.int64), np.empty((0, 3))
-    for first in range(start, stop, BATCH):
-        n = min(BATCH, stop - first)
-        _gather_corners(points, normals, no_tangents, faces, every, first, n, g)
-        _fit_batch(g, n, ft)
-        _trace_batch(g, ft, n, out)
-        for k in range(n):
-            for j in range(3):
-                slot = owned_add(acc, spill, spill_rows, slot, lo, hi, faces[first + k, j], out[4 * j, k],
-                                 out[4 * j + 1, k], 0.0, 0.0)
+            out[4 * j + 2, k] = 0.0
+            out[4 * j + 3, k] = 0.0
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -311,24 +291,68 @@ def _mean_range(normals, acc, order, mean, area, normals_out, start, stop):
         v3.store(normals_out, row, nrm)
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
-def _tensor_chunk(points, faces, normals, tangents, acc, owners, outside, spill, spill_rows, c):
-    """Zero the rows chunk ``c`` of the faces owns in ``acc`` (V, 4) and add the corner-area-weighted tensors of
-    its faces, in the vertex frames, and the weights: (ku, kuv, kv, w) per vertex
-    (:class:`~pverosion.kernels._scatter.OwnedRows`)."""
+NORMALS, TRACES, TENSORS = 0, 1, 2
+"""What :func:`_face_chunk` adds per vertex: Max-weighted normals, traces of the face tensors, or the tensors."""
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _normal_batch(g, n, out):
+    """The Max-weighted normal of each of the ``n`` gathered faces (:func:`normal_terms`) as its corners add it:
+    ``(w n, 0)`` of corner ``j`` in rows ``4 j`` to ``4 j + 3`` of ``out`` (12, BATCH)."""
+    for k in range(n):
+        normal, w0, w1, w2 = normal_terms(_gathered(g, 0, k), _gathered(g, 3, k), _gathered(g, 6, k), True)
+        out[0, k], out[1, k], out[2, k] = v3.scale(normal, w0)
+        out[4, k], out[5, k], out[6, k] = v3.scale(normal, w1)
+        out[8, k], out[9, k], out[10, k] = v3.scale(normal, w2)
+        out[3, k] = out[7, k] = out[11, k] = 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _face_chunk(points, faces, normals, tangents, what, acc, owners, outside, spill, spill_rows, c):
+    """Zero the rows chunk ``c`` of the faces owns in ``acc`` (V, 4) and add what its faces give their corners
+    (:class:`~pverosion.kernels._scatter.OwnedRows`), batch by batch: with ``what`` :data:`NORMALS`, the
+    Max-weighted normals (``normals`` and ``tangents`` unused); :data:`TRACES`, the corner-area-weighted traces
+    of the face tensors and the weights (``tangents`` unused); :data:`TENSORS`, the corner-area-weighted face
+    tensors in the vertex frames and the weights, (ku, kuv, kv, w)."""
     lo, hi, slot = owned_start(acc, owners, outside, c)
     start, stop = chunk_range(faces.shape[0], c)
     g, ft, out = _batch_buffers()
-    every = np.empty(0, np.int64)
+    every, nothing = np.empty(0, np.int64), np.empty((0, 3))
     for first in range(start, stop, BATCH):
         n = min(BATCH, stop - first)
-        _gather_corners(points, normals, tangents, faces, every, first, n, g)
-        _fit_batch(g, n, ft)
-        _tensor_batch(g, ft, n, out)
+        if what == NORMALS:
+            _gather_corners(points, nothing, nothing, faces, every, first, n, g)
+            _normal_batch(g, n, out)
+        else:
+            _gather_corners(points, normals, tangents if what == TENSORS else nothing, faces, every, first, n, g)
+            _fit_batch(g, n, ft)
+            if what == TENSORS:
+                _tensor_batch(g, ft, n, out)
+            else:
+                _trace_batch(g, ft, n, out)
         for k in range(n):
             for j in range(3):
                 slot = owned_add(acc, spill, spill_rows, slot, lo, hi, faces[first + k, j], out[4 * j, k],
                                  out[4 * j + 1, k], out[4 * j + 2, k], out[4 * j + 3, k])
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _normal_chunk(points, faces, acc, owners, outside, spill, spill_rows, c):
+    """:func:`_face_chunk` of the :data:`NORMALS` (one kernel per kind, so that each compiles without the others'
+    branches)."""
+    _face_chunk(points, faces, points, points, NORMALS, acc, owners, outside, spill, spill_rows, c)
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _trace_chunk(points, faces, normals, acc, owners, outside, spill, spill_rows, c):
+    """:func:`_face_chunk` of the :data:`TRACES`."""
+    _face_chunk(points, faces, normals, normals, TRACES, acc, owners, outside, spill, spill_rows, c)
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _tensor_chunk(points, faces, normals, tangents, acc, owners, outside, spill, spill_rows, c):
+    """:func:`_face_chunk` of the :data:`TENSORS`."""
+    _face_chunk(points, faces, normals, tangents, TENSORS, acc, owners, outside, spill, spill_rows, c)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -459,10 +483,10 @@ def _track(points, faces, indptr, face_ids, corners, vertices, face_list, curved
     ``curved``; every vertex sums its faces in incidence order."""
     for q in prange(face_list.shape[0]):
         f = face_list[q]
-        ok, n, w0, w1, w2 = face_normal_terms(points, faces, f, True)
+        n, w0, w1, w2 = face_normal_terms(points, faces, f, True)
         for k, w in enumerate((w0, w1, w2)):
             for d in range(3):
-                terms[f, k, d] = w * n[d] if ok else 0.0
+                terms[f, k, d] = w * n[d]
     for q in prange(vertices.shape[0]):
         v = vertices[q]
         total = (0.0, 0.0, 0.0)
@@ -737,8 +761,9 @@ class CurvatureOperator:
         return self._scratch
 
     def _scatter(self, kernel, acc: np.ndarray, *args) -> None:
-        """Run the face chunks of ``kernel(*args, acc, owners, outside, spill, spill_rows, c)``, which zero their
-        rows of ``acc`` (V, 4) and add into them, then add their corners outside their rows."""
+        """Run the face chunks of ``kernel(*args, acc, owners, outside, spill, spill_rows, c)`` (a kind of
+        :func:`_face_chunk`), which zero their rows of ``acc`` (V, 4) and add into them, then add their corners
+        outside their rows."""
         owned, spill, spill_rows = self._owned
         for_chunks(kernel, self.faces.shape[0], *args, acc, owned.owners, owned.outside, spill, spill_rows)
         add_outside(acc, spill, spill_rows)

@@ -52,22 +52,30 @@ def face_normals(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def face_normal_terms(points, faces, f, max_weights):
-    """Contribution of face ``f`` to the normals of its corners: (ok, n, w0, w1, w2).
+def normal_terms(p0, p1, p2, max_weights):
+    """Contribution of the triangle ``p0, p1, p2`` to the normals of its corners: (n, w0, w1, w2).
 
     ``n`` is the unnormalised face normal (twice the area); each corner adds
     ``w_k n``, with weights 1 (area weighting) or Max's ``1 / (|e_a|^2 |e_b|^2)``
-    of the corner's two edges; ``ok`` is False for a face Max's weights skip.
+    of the corner's two edges, all zero where an edge has zero length. Without
+    branches (each case computed, then selected), so that loops over batches
+    of faces become vector instructions; called from kernels with
+    ``error_model="numpy"``.
     """
-    p0, p1, p2 = v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2])
     a, b, e = v3.sub(p1, p0), v3.sub(p2, p1), v3.sub(p0, p2)
     n = v3.cross(a, b)
-    if not max_weights:
-        return True, n, 1.0, 1.0, 1.0
     la, lb, le = v3.dot(a, a), v3.dot(b, b), v3.dot(e, e)
-    if la * lb * le == 0.0:
-        return False, n, 0.0, 0.0, 0.0
-    return True, n, 1.0 / (la * le), 1.0 / (la * lb), 1.0 / (lb * le)
+    skip = la * lb * le == 0.0
+    m0, m1, m2 = 1.0 / (la * le), 1.0 / (la * lb), 1.0 / (lb * le)
+    m0, m1, m2 = (0.0 if skip else m0), (0.0 if skip else m1), (0.0 if skip else m2)
+    return n, (m0 if max_weights else 1.0), (m1 if max_weights else 1.0), (m2 if max_weights else 1.0)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def face_normal_terms(points, faces, f, max_weights):
+    """:func:`normal_terms` of face ``f``: (n, w0, w1, w2)."""
+    return normal_terms(v3.row(points, faces[f, 0]), v3.row(points, faces[f, 1]), v3.row(points, faces[f, 2]),
+                        max_weights)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -75,15 +83,12 @@ def add_normal_chunk(points, faces, max_weights, acc, c):
     """Zero ``acc[c]`` and add the weighted normals of chunk ``c`` of the faces to their corners in
     ``acc[c, :, :3]`` (``acc`` is (C, V, 3) or wider).
 
-    Called with a Python bool from :func:`vertex_normals` and the curvature
-    operator alike, so that one compiled specialisation serves both.
+    Called with a Python bool from :func:`vertex_normals`.
     """
     acc[c] = 0.0
     start, stop = chunk_range(faces.shape[0], c)
     for f in range(start, stop):
-        ok, n, w0, w1, w2 = face_normal_terms(points, faces, f, max_weights)
-        if not ok:
-            continue
+        n, w0, w1, w2 = face_normal_terms(points, faces, f, max_weights)
         i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
         for d in range(3):
             acc[c, i0, d] += w0 * n[d]
