@@ -4,6 +4,7 @@ from conftest import height_field, icosphere, one_and_all_threads
 
 from pverosion.kernels import orient_faces, signed_volume, winding_number
 from pverosion.kernels.mesh import orientation
+from pverosion.kernels._scatter import owned_rows
 from pverosion.kernels.mesh.orientation import orient_sorted
 from pverosion.kernels.mesh.topology import sorted_twins
 
@@ -111,6 +112,10 @@ def test_sorted_orientation_matches_the_input_order_result():
     assert s.n_flipped == o.n_flipped
     lo = s.faces.min(axis=1)
     assert np.all(np.diff(lo) >= 0)  # sorted by smallest vertex
+    counted = owned_rows(s.faces, len(p))  # the rows the curvature's face chunks own, counted on the way
+    np.testing.assert_array_equal(s.owned.owners, counted.owners)
+    np.testing.assert_array_equal(s.owned.outside, counted.outside)
+    assert counted.n_outside > 0
     with pytest.raises(ValueError, match="orientation must be"):
         orient_sorted(p, f, mode="keep")
 

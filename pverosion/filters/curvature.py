@@ -77,7 +77,8 @@ class Curvature(ErosionFilter):
                 warnings.warn(f"curvature: {oriented.n_nonmanifold} face sides lie on edges shared by more than two "
                               "faces; the curvature near them mixes the surfaces that meet there (pverosion repair "
                               "separates them)", UserWarning, stacklevel=2)
-            operator = CurvatureOperator.from_sorted(oriented.faces, len(points), renumbering=renumbering)
+            operator = CurvatureOperator.from_sorted(oriented.faces, len(points), renumbering=renumbering,
+                                                     owned=oriented.owned)
             result = operator.at_local_points(local_points)
         if not result.point_areas.any():
             raise InvalidMeshError("mesh has no area: every triangle is degenerate (its points lie on a line or "

@@ -41,6 +41,16 @@ def chunk_total(acc, i, k):
     return total
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def outside_corners(faces, f, lo, hi):
+    """How many corners of face ``f`` lie outside rows ``lo`` to ``hi``."""
+    n = 0
+    for k in range(3):
+        if faces[f, k] < lo or faces[f, k] >= hi:
+            n += 1
+    return n
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
 def _count_outside_chunk(faces, owners, counts, c):
     """Count into ``counts[c]`` the corners of chunk ``c`` of the faces outside the rows it owns."""
@@ -48,9 +58,7 @@ def _count_outside_chunk(faces, owners, counts, c):
     n = 0
     start, stop = chunk_range(faces.shape[0], c)
     for f in range(start, stop):
-        for k in range(3):
-            if faces[f, k] < lo or faces[f, k] >= hi:
-                n += 1
+        n += outside_corners(faces, f, lo, hi)
     counts[c] = n
 
 
@@ -75,6 +83,37 @@ class OwnedRows:
         """Number of slots, all chunks together."""
         return int(self.outside[-1])
 
+    @classmethod
+    def from_counts(cls, owners: np.ndarray, counts: np.ndarray) -> OwnedRows:
+        """The split of :func:`owner_rows` ``owners`` whose chunk ``c`` has ``counts[c]`` corners outside its rows
+        (counted by a pass over the faces that a caller makes anyway, with :func:`outside_corners`)."""
+        outside = np.zeros(CHUNKS + 1, np.int64)
+        np.cumsum(counts, out=outside[1:])
+        return cls(owners, outside)
+
+
+def owner_rows(faces: np.ndarray, n_rows: int) -> np.ndarray:
+    """The ``owners`` (CHUNKS + 1,) of :class:`OwnedRows`: chunk ``c`` owns the rows from the smallest vertex of its
+    first face on (monotone whatever the face order).
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64
+    n_rows : int
+
+    Returns
+    -------
+    numpy.ndarray, shape (CHUNKS + 1,), int64
+    """
+    n_faces = faces.shape[0]
+    owners = np.full(CHUNKS + 1, n_rows, np.int64)
+    owners[0] = 0
+    for c in range(1, CHUNKS):
+        start = c * n_faces // CHUNKS
+        if start < n_faces:
+            owners[c] = min(int(faces[start].min()), n_rows)
+    return np.maximum.accumulate(owners)
+
 
 def owned_rows(faces: np.ndarray, n_rows: int) -> OwnedRows:
     """Split the rows of a scatter-add from ``faces`` among the face chunks.
@@ -97,19 +136,10 @@ def owned_rows(faces: np.ndarray, n_rows: int) -> OwnedRows:
     """
     from pverosion.kernels._threads import for_chunks  # _threads imports this module
 
-    n_faces = faces.shape[0]
-    owners = np.full(CHUNKS + 1, n_rows, np.int64)
-    owners[0] = 0
-    for c in range(1, CHUNKS):
-        start = c * n_faces // CHUNKS
-        if start < n_faces:
-            owners[c] = min(int(faces[start].min()), n_rows)
-    np.maximum.accumulate(owners, out=owners)
+    owners = owner_rows(faces, n_rows)
     counts = np.zeros(CHUNKS, np.int64)
-    for_chunks(_count_outside_chunk, n_faces, np.ascontiguousarray(faces), owners, counts)
-    outside = np.zeros(CHUNKS + 1, np.int64)
-    np.cumsum(counts, out=outside[1:])
-    return OwnedRows(owners, outside)
+    for_chunks(_count_outside_chunk, faces.shape[0], np.ascontiguousarray(faces), owners, counts)
+    return OwnedRows.from_counts(owners, counts)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

@@ -667,10 +667,11 @@ class CurvatureOperator:
         self.faces = None if self._scattered is not None else locality_sorted(fcs, n_vertices)[1]
         self._scratch: tuple | None = None
         self._owned: tuple[OwnedRows, np.ndarray, np.ndarray] | None = None
+        self._owned_rows: OwnedRows | None = None
 
     @classmethod
-    def from_sorted(cls, faces: np.ndarray, n_vertices: int, *,
-                    renumbering: Renumbering | None = None) -> CurvatureOperator:
+    def from_sorted(cls, faces: np.ndarray, n_vertices: int, *, renumbering: Renumbering | None = None,
+                    owned: OwnedRows | None = None) -> CurvatureOperator:
         """An operator on faces already validated and sorted by their smallest vertex (stable).
 
         The faces of :func:`~pverosion.kernels.mesh.orientation.orient_sorted` are;
@@ -684,6 +685,10 @@ class CurvatureOperator:
         renumbering : Renumbering, optional
             The numbering of ``faces``; the operator takes and returns per-vertex
             arrays in the caller's order, as one that renumbered itself.
+        owned : OwnedRows, optional
+            :func:`~pverosion.kernels._scatter.owned_rows` of ``faces`` when the
+            caller has it (:func:`~pverosion.kernels.mesh.orientation.orient_sorted`
+            counts it); else the first call counts it.
         """
         operator = cls.__new__(cls)
         operator.n_vertices = int(n_vertices)
@@ -692,6 +697,7 @@ class CurvatureOperator:
         operator.faces = faces
         operator._scratch = None
         operator._owned = None
+        operator._owned_rows = owned
         return operator
 
     def __call__(self, points, *, normals=None) -> CurvatureResult:
@@ -770,7 +776,7 @@ class CurvatureOperator:
             n = self.n_vertices
             local = self.renumbering is not None
             rows = (np.empty((n, 3)), np.empty((n, 3))) if local else (None, None)
-            owned = owned_rows(self.faces, n)
+            owned = self._owned_rows if self._owned_rows is not None else owned_rows(self.faces, n)
             self._owned = (owned, np.empty((owned.n_outside, 4)), np.empty(owned.n_outside, np.int64))
             self._scratch = (*rows, np.empty((n, 3)), np.empty((n, 4)))
         return self._scratch

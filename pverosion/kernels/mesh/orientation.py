@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from pverosion.kernels import _vec3 as v3
-from pverosion.kernels._scatter import CHUNKS, chunk_range
+from pverosion.kernels._scatter import CHUNKS, OwnedRows, chunk_range, outside_corners, owner_rows
 from pverosion.kernels._threads import for_chunks, for_ranges, range_count
 from pverosion.kernels.mesh.locality import locality_renumbering
 from pverosion.kernels.mesh.topology import sorted_twins
@@ -336,12 +336,15 @@ def _centre_extent(points):
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def _settle_chunk(points, faces, root_comp, root_flip, state, labels, flip, component, others, origin, volume,
-                  rims, c):
+                  rims, owners, outside, c):
     """Resolve the faces of chunk ``c`` of :func:`_propagate_split` from their ``state`` and ``labels`` into
     ``flip`` and ``component``, then add six times their signed volume per component into
-    ``volume[c]`` and count their boundary half-edges into ``rims[c]``."""
+    ``volume[c]``, count their boundary half-edges into ``rims[c]`` and their corners outside the rows the
+    chunk owns (``owners``, :class:`~pverosion.kernels._scatter.OwnedRows`) into ``outside[c]``."""
     start, stop = chunk_range(faces.shape[0], c)
     origin = (origin[0], origin[1], origin[2])  # in registers: the stores below could alias the array
+    lo, hi = owners[c], owners[c + 1]
+    n_outside = 0
     n_rim = 0
     here = -1  # the component whose volume ``total`` holds, added in face order as the array would be
     total = 0.0
@@ -363,9 +366,11 @@ def _settle_chunk(points, faces, root_comp, root_flip, state, labels, flip, comp
         total += -det if reverse else det
         h = 3 * f
         n_rim += (others[h] == 0) + (others[h + 1] == 0) + (others[h + 2] == 0)
+        n_outside += outside_corners(faces, f, lo, hi)
     if here >= 0:
         volume[c, here] = total
     rims[c] += n_rim
+    outside[c] = n_outside
 
 
 @njit(cache=True, error_model="numpy")
@@ -405,12 +410,13 @@ def _hole_cones(points, faces, flip, component, others, origin, volume, rim, par
 
 
 def _settled_volumes(points: np.ndarray, faces: np.ndarray, partner: np.ndarray,
-                     others: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, np.ndarray, float]:
+                     others: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, np.ndarray, float, OwnedRows]:
     """The consistent faces of :func:`_propagate_split` and the signed volume of every component, each hole
     closed by a cone to its rim's centroid, from one more pass over the faces.
 
-    Returns ``flip`` (F,), ``component`` (F,), the number of components, their volumes and the largest
-    extent of the points along an axis.
+    Returns ``flip`` (F,), ``component`` (F,), the number of components, their volumes, the largest
+    extent of the points along an axis and the :class:`~pverosion.kernels._scatter.OwnedRows` of the faces,
+    counted in the same pass.
     """
     state, labels, root_comp, root_flip, n_comp = _propagate_split(faces, partner)
     flip, component = np.empty(faces.shape[0], np.bool_), np.empty(faces.shape[0], np.int64)
@@ -418,15 +424,16 @@ def _settled_volumes(points: np.ndarray, faces: np.ndarray, partner: np.ndarray,
     origin = np.array(centre)
     chunks = np.zeros((CHUNKS, n_comp))
     rims = np.zeros(CHUNKS, np.int64)
+    owners, outside = owner_rows(faces, points.shape[0]), np.zeros(CHUNKS, np.int64)
     for_chunks(_settle_chunk, faces.shape[0], points, faces, root_comp, root_flip, state, labels, flip, component,
-               others, origin, chunks, rims)
+               others, origin, chunks, rims, owners, outside)
     volume = chunks.sum(axis=0)
     n_rim = int(rims.sum())
     if n_rim:
         n_vertices = points.shape[0]
         _hole_cones(points, faces, flip, component, others, origin, volume, np.empty(n_rim, np.int64),
                     np.arange(n_vertices), np.zeros((n_vertices, 3)), np.zeros(n_vertices))
-    return flip, component, n_comp, volume / 6.0, extent
+    return flip, component, n_comp, volume / 6.0, extent, OwnedRows.from_counts(owners, outside)
 
 
 def orient_faces(
@@ -494,6 +501,9 @@ class SortedOrientation:
     n_nonmanifold : int
         Number of half-edges on edges with more than two faces (0 on a manifold mesh); the orientation does not
         propagate across them.
+    owned : OwnedRows or None
+        The :class:`~pverosion.kernels._scatter.OwnedRows` of ``faces``, for kernels that add from them into
+        per-vertex sums (:meth:`~pverosion.kernels.curvature.operator.CurvatureOperator.from_sorted`).
     """
 
     order: np.ndarray
@@ -502,6 +512,7 @@ class SortedOrientation:
     component: np.ndarray
     n_flipped: int
     n_nonmanifold: int = 0
+    owned: OwnedRows | None = None
 
     def input_flip(self) -> np.ndarray:
         """Mask (F,) of the reversed faces in the input order."""
@@ -534,7 +545,7 @@ def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward
     if mode not in ("outward", "inward"):
         raise ValueError(f"orientation must be 'outward' or 'inward'; got {mode!r}")
     order, local, partner, others = sorted_twins(faces, len(points))
-    flip, component, n_comp, volume, extent = _settled_volumes(points, local, partner, others)
+    flip, component, n_comp, volume, extent, owned = _settled_volumes(points, local, partner, others)
     decided = np.abs(volume) > 1e-9 * extent**3
     turn = decided & (volume < 0)
     if n_comp > 1:
@@ -546,7 +557,7 @@ def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward
     n_flipped = int(np.count_nonzero(flip))
     n_nonmanifold = int(np.count_nonzero(others >= 2)) if len(others) and others.max() >= 2 else 0
     return SortedOrientation(order, _apply(local, flip) if n_flipped else local, flip, component, n_flipped,
-                             n_nonmanifold)
+                             n_nonmanifold, owned)
 
 
 def _unsort(values: np.ndarray, order: np.ndarray) -> np.ndarray:
