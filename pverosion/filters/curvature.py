@@ -67,8 +67,11 @@ class Curvature(ErosionFilter):
             # the orientation's faces come sorted the way the curvature operator sorts them, in the
             # same vertex numbering (the caller's, or the Morton order of a mesh of poor locality)
             renumbering = locality_renumbering(points, faces)
-            local_points = points if renumbering is None else renumbering.to_local(points)
-            oriented = orient_sorted(local_points, faces, mode=mode, renumbering=renumbering)
+            if renumbering is None:
+                local_points, local_faces = points, faces
+            else:
+                local_points, local_faces = renumbering.to_local(points), renumbering.faces(faces)
+            oriented = orient_sorted(local_points, local_faces, mode=mode)
             n_flipped = oriented.n_flipped
             if oriented.n_nonmanifold:
                 warnings.warn(f"curvature: {oriented.n_nonmanifold} face sides lie on edges shared by more than two "

@@ -19,7 +19,7 @@ from numba import njit
 from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, OwnedRows, chunk_range, outside_corners, owner_rows
 from pverosion.kernels._threads import for_chunks, for_ranges, range_count
-from pverosion.kernels.mesh.locality import Renumbering, locality_renumbering
+from pverosion.kernels.mesh.locality import locality_renumbering
 from pverosion.kernels.mesh.topology import sorted_twins
 
 __all__ = ["ORIENTATIONS", "Orientation", "SortedOrientation", "orient_faces", "orient_sorted", "winding_number"]
@@ -473,8 +473,10 @@ def orient_faces(
     if mode == "keep":
         return Orientation(faces, np.zeros(len(faces), bool), None, mode)
     renumbering = locality_renumbering(points, faces)
-    local_points = points if renumbering is None else renumbering.to_local(points)
-    local = orient_sorted(local_points, faces, mode=mode, renumbering=renumbering)
+    if renumbering is None:
+        local = orient_sorted(points, faces, mode=mode)
+    else:
+        local = orient_sorted(renumbering.to_local(points), renumbering.faces(faces), mode=mode)
     flipped = local.input_flip()
     out = _apply(faces, flipped) if local.n_flipped else faces.copy()
     return Orientation(out, flipped, _unsort(local.component, local.order), mode)
@@ -521,8 +523,7 @@ class SortedOrientation:
         return _apply(faces, self.input_flip())
 
 
-def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward",
-                  renumbering: Renumbering | None = None) -> SortedOrientation:
+def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward") -> SortedOrientation:
     """:func:`orient_faces` on the faces sorted by their smallest vertex, without mapping back.
 
     Kernels that sort faces the same way for memory locality (such as
@@ -533,13 +534,9 @@ def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward
     Parameters
     ----------
     points : numpy.ndarray, shape (V, 3), float64
-        In the local numbering of ``renumbering`` when it is given.
     faces : numpy.ndarray, shape (F, 3), int64
-        Validated triangles, in the caller's numbering.
+        Validated triangles.
     mode : {"outward", "inward"}
-    renumbering : Renumbering, optional
-        The numbering to orient in: the faces are renumbered as they are sorted (no renumbered copy of them is
-        made), and the result's faces are in it.
 
     Returns
     -------
@@ -547,8 +544,7 @@ def orient_sorted(points: np.ndarray, faces: np.ndarray, *, mode: str = "outward
     """
     if mode not in ("outward", "inward"):
         raise ValueError(f"orientation must be 'outward' or 'inward'; got {mode!r}")
-    order, local, partner, others = sorted_twins(faces, len(points),
-                                                 rank=None if renumbering is None else renumbering.rank)
+    order, local, partner, others = sorted_twins(faces, len(points))
     flip, component, n_comp, volume, extent, owned = _settled_volumes(points, local, partner, others)
     decided = np.abs(volume) > 1e-9 * extent**3
     turn = decided & (volume < 0)

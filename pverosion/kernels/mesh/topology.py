@@ -300,29 +300,20 @@ def _lowest_corner(a0, a1, a2):
     return 1 if a1 < a2 else 2
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _renumbered_face(faces, rank, f):
-    """The corners of face ``f``, through ``rank`` (the new number of every vertex) when it is not empty."""
-    if rank.shape[0]:
-        return rank[faces[f, 0]], rank[faces[f, 1]], rank[faces[f, 2]]
-    return faces[f, 0], faces[f, 1], faces[f, 2]
-
-
 @njit(cache=True, error_model="numpy", nogil=True)
-def _count_parts(faces, rank, bounds, lows, mids, repeated, start, stop):
-    """For parts ``start`` to ``stop`` of the faces (part ``p`` is ``bounds[p]`` to ``bounds[p + 1]``), renumbered
-    by ``rank`` when it is not empty: the faces per smallest vertex into ``lows[p]``, per middle vertex into
-    ``mids[p]``, and the faces that repeat a corner into ``repeated[p]``."""
+def _count_parts(faces, bounds, lows, mids, repeated, start, stop):
+    """For parts ``start`` to ``stop`` of the faces (part ``p`` is ``bounds[p]`` to ``bounds[p + 1]``): the faces
+    per smallest vertex into ``lows[p]``, per middle vertex into ``mids[p]``, and the faces that repeat a corner
+    into ``repeated[p]``."""
     for p in range(start, stop):
         for f in range(bounds[p], bounds[p + 1]):
-            corners = _renumbered_face(faces, rank, f)
-            a0, a1, a2 = corners
+            a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
             if a0 == a1 or a1 == a2 or a2 == a0:
                 repeated[p] += 1
                 continue
             j = _lowest_corner(a0, a1, a2)
-            lows[p, corners[j]] += 1
-            b, c = corners[(j + 1) % 3], corners[(j + 2) % 3]
+            lows[p, faces[f, j]] += 1
+            b, c = faces[f, (j + 1) % 3], faces[f, (j + 2) % 3]
             mids[p, b if b < c else c] += 1
 
 
@@ -350,20 +341,19 @@ def _part_offsets(lows, mids, starts):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _fill_parts(faces, rank, bounds, lows, mids, order, rows, far_end, far_half, start, stop):
-    """Place the faces of parts ``start`` to ``stop`` (renumbered as in :func:`_count_parts`) at their sorted
-    positions, and the far edge of each (the one away from its smallest vertex) in the slots of its smaller
-    vertex: its larger vertex into ``far_end`` and its half-edge of the sorted faces into ``far_half``."""
+def _fill_parts(faces, bounds, lows, mids, order, rows, far_end, far_half, start, stop):
+    """Place the faces of parts ``start`` to ``stop`` at their sorted positions, and the far edge of each (the
+    one away from its smallest vertex) in the slots of its smaller vertex: its larger vertex into ``far_end``
+    and its half-edge of the sorted faces into ``far_half``."""
     for p in range(start, stop):
         for f in range(bounds[p], bounds[p + 1]):
-            corners = _renumbered_face(faces, rank, f)
-            a0, a1, a2 = corners
+            a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
             j = _lowest_corner(a0, a1, a2)
-            i = lows[p, corners[j]]
-            lows[p, corners[j]] = i + 1
+            i = lows[p, faces[f, j]]
+            lows[p, faces[f, j]] = i + 1
             order[i] = f
             rows[i, 0], rows[i, 1], rows[i, 2] = a0, a1, a2
-            b, c = corners[(j + 1) % 3], corners[(j + 2) % 3]
+            b, c = faces[f, (j + 1) % 3], faces[f, (j + 2) % 3]
             lo, hi = (b, c) if b < c else (c, b)
             s = mids[p, lo]
             mids[p, lo] = s + 1
@@ -442,7 +432,7 @@ def _match_sorted_range(rows, starts, far_end, far_half, partner, others, start,
                 tally[ends[s]] = 0
 
 
-def _sorted_twins_of_triangles(faces: np.ndarray, n_vertices: int, rank: np.ndarray) -> tuple[np.ndarray, ...] | None:
+def _sorted_twins_of_triangles(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, ...] | None:
     """:func:`sorted_twins` by one counting sort split over the threads, or None when a face repeats a corner.
 
     Each part of the faces counts and then places its own faces, from offsets
@@ -458,7 +448,7 @@ def _sorted_twins_of_triangles(faces: np.ndarray, n_vertices: int, rank: np.ndar
     lows = np.zeros((parts, n_vertices), np.int32)  # positions below 3 F: 32 bits halve the cache these walk
     mids = np.zeros((parts, n_vertices), np.int32)
     repeated = np.zeros(parts, np.int64)
-    for_ranges(_count_parts, parts, faces, rank, bounds, lows, mids, repeated, min_items=1)
+    for_ranges(_count_parts, parts, faces, bounds, lows, mids, repeated, min_items=1)
     if repeated.any():
         return None
     starts = np.empty((2, n_vertices + 1), np.int64)
@@ -466,7 +456,7 @@ def _sorted_twins_of_triangles(faces: np.ndarray, n_vertices: int, rank: np.ndar
     order = np.empty(n_faces, np.int64)
     rows = np.empty_like(faces)
     far_end, far_half = np.empty(n_faces, np.int32), np.empty(n_faces, np.int32)
-    for_ranges(_fill_parts, parts, faces, rank, bounds, lows, mids, order, rows, far_end, far_half, min_items=1)
+    for_ranges(_fill_parts, parts, faces, bounds, lows, mids, order, rows, far_end, far_half, min_items=1)
     partner = np.empty(3 * n_faces, np.int32)  # every half-edge is in the group of one edge: all are written
     others = np.empty(3 * n_faces, np.int32)
     for_ranges(_match_sorted_range, n_vertices, rows, starts, far_end, far_half, partner, others)
@@ -567,23 +557,19 @@ def _slots_fit_int32(n_faces: int, n_vertices: int) -> bool:
     return 3 * n_faces < 2**31 and n_vertices < 2**31
 
 
-def sorted_twins(faces: np.ndarray, n_vertices: int, *,
-                 rank: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def sorted_twins(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`locality_sorted` and the :func:`halfedge_twins` of the sorted faces, from two passes over ``faces``.
 
     Parameters
     ----------
     faces : numpy.ndarray, shape (F, 3), int64
     n_vertices : int
-    rank : numpy.ndarray, shape (V,), int64, optional
-        The new number of every vertex (:attr:`~pverosion.kernels.mesh.locality.Renumbering.rank`): the faces
-        are renumbered as they are sorted, with no renumbered copy made first.
 
     Returns
     -------
     order : numpy.ndarray, shape (F,), int64
     sorted_faces : numpy.ndarray, shape (F, 3)
-        ``faces[order]``, renumbered by ``rank`` when it is given.
+        ``faces[order]``.
     partner, others : numpy.ndarray, shape (3F,), int32
         As :func:`halfedge_twins` of ``sorted_faces`` returns them, in 32 bits (which halves the memory the
         propagation of an orientation walks); int64 when ``3 F`` exceeds the 32-bit range.
@@ -591,11 +577,9 @@ def sorted_twins(faces: np.ndarray, n_vertices: int, *,
     faces = np.ascontiguousarray(faces)
     compact = _slots_fit_int32(len(faces), n_vertices)
     if compact:
-        twins = _sorted_twins_of_triangles(faces, int(n_vertices), np.empty(0, np.int64) if rank is None else rank)
+        twins = _sorted_twins_of_triangles(faces, int(n_vertices))
         if twins is not None:
             return twins
-    if rank is not None:
-        faces = rank[faces]
     order, rows = locality_sorted(faces, n_vertices)
     partner, others = halfedge_twins(rows, n_vertices)
     if compact:
