@@ -6,8 +6,9 @@
   process on the same cores costs time in proportion, not tenfold. Variables the
   user has set are left alone.
 - :func:`configure_allocator` also runs on import (Linux with glibc): arrays of
-  up to 32 MB come from the heap and freed memory stays mapped (up to 256 MB),
-  so the kernels' scratch arrays do not fault in fresh pages on every call.
+  up to 32 MB come from the heap and freed memory stays mapped (up to 256 MB,
+  more after a stage on a large input: :func:`keep_heap_for`), so the kernels'
+  scratch arrays do not fault in fresh pages on every call.
 - :func:`stage_run` wraps one stage's execution: it caps numba's threads for
   small inputs (respecting ``NUMBA_NUM_THREADS`` and :func:`numba.set_num_threads`)
   and, when numba has to compile kernels (an empty cache: a fresh install, a new
@@ -36,8 +37,10 @@ __all__ = [
     "POINTS_PER_THREAD",
     "THREAD_ENVIRONMENT",
     "WORK_NOT_IN_POINTS",
+    "HEAP_KEPT_PER_POINT",
     "configure_allocator",
     "configure_environment",
+    "keep_heap_for",
     "relax_gc_for_compilation",
     "restore_gc",
     "stage_run",
@@ -54,6 +57,14 @@ ALLOCATOR_SETTINGS: dict[str, tuple[int, int]] = {
 """glibc ``mallopt`` parameters (number, value in bytes) set by :func:`configure_allocator`."""
 
 _ALLOCATOR_VARIABLES = ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_", "MALLOC_MMAP_MAX_")
+
+HEAP_KEPT_PER_POINT = 1024
+"""Bytes of freed heap that stay mapped per point of the largest input a stage has run on (:func:`keep_heap_for`):
+about what a curvature call frees per point of a large mesh (the twin search, the orientation and the
+operator's scratch arrays, some 600 bytes per point at 1.6M faces), with room to spare."""
+
+_allocator: dict[str, object] = {}  # "mallopt" and "trim" once configure_allocator has set them
+_allocator_lock = threading.Lock()
 
 POINTS_PER_THREAD = 8192
 """Input points per numba thread: smaller inputs run on fewer threads."""
@@ -131,7 +142,54 @@ def configure_allocator(environ: Mapping[str, str] | None = None,
             mallopt = ctypes.CDLL("libc.so.6").mallopt
         except (OSError, AttributeError):
             return {}
-    return {name: value for name, (number, value) in ALLOCATOR_SETTINGS.items() if mallopt(number, value) == 1}
+    applied = {name: value for name, (number, value) in ALLOCATOR_SETTINGS.items() if mallopt(number, value) == 1}
+    if "M_TRIM_THRESHOLD" in applied:
+        _allocator.update(mallopt=mallopt, trim=applied["M_TRIM_THRESHOLD"])
+    return applied
+
+
+def _physical_memory() -> int:
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return 0
+
+
+def keep_heap_for(n_points: int, *, memory: int | None = None) -> int:
+    """Keep the freed heap of a stage on ``n_points`` points mapped for the next call.
+
+    On a large mesh a stage frees more scratch memory at once than the
+    256 MB that :func:`configure_allocator` keeps mapped: at 1.6M faces a
+    curvature call then faulted 4,900 pages in again on every call (40 to 90 ms
+    of system time, a quarter of the call) once another library had used the
+    heap in between. This raises glibc's trim threshold to
+    :data:`HEAP_KEPT_PER_POINT` bytes per point, up to an eighth of the
+    physical memory, and never lowers it: the process may keep that much
+    more resident after the stage. It does nothing unless
+    :func:`configure_allocator` has set the threshold (so not with
+    ``PVEROSION_MALLOC_TUNING=0`` or glibc's own ``MALLOC_*`` variables).
+
+    Parameters
+    ----------
+    n_points : int
+        Points of the stage's input.
+    memory : int, optional
+        Physical memory in bytes (default: the machine's).
+
+    Returns
+    -------
+    int
+        The trim threshold now in force, 0 when the allocator is not tuned.
+    """
+    with _allocator_lock:
+        if "mallopt" not in _allocator:
+            return 0
+        memory = _physical_memory() if memory is None else memory
+        wanted = min(HEAP_KEPT_PER_POINT * max(0, int(n_points)), memory // 8)
+        number = ALLOCATOR_SETTINGS["M_TRIM_THRESHOLD"][0]
+        if wanted > _allocator["trim"] and _allocator["mallopt"](number, wanted) == 1:
+            _allocator["trim"] = wanted
+        return int(_allocator["trim"])
 
 
 def threads_for(n_points: int, available: int) -> int:
@@ -244,6 +302,7 @@ def stage_run(stage: str, n_points: int = 0, *, stream: TextIO | None = None) ->
     from numba.core import event
 
     stream = sys.stderr if stream is None else stream
+    keep_heap_for(n_points)
     notice = _compile_notice(stage, stream)
     previous = numba.get_num_threads()
     _state.active = True

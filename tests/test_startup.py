@@ -22,8 +22,10 @@ from pverosion._runtime import (
     ALLOCATOR_SETTINGS,
     POINTS_PER_THREAD,
     WORK_NOT_IN_POINTS,
+    HEAP_KEPT_PER_POINT,
     configure_allocator,
     configure_environment,
+    keep_heap_for,
     stage_run,
     threads_for,
 )
@@ -122,7 +124,8 @@ def test_cold_stage_starts_its_helper_before_parsing_and_help_starts_none(monkey
     assert calls == [("curvature", True)]  # within helpers_allowed, before the arguments were parsed
 
 
-def test_allocator_settings_leave_the_users_settings():
+def test_allocator_settings_leave_the_users_settings(monkeypatch):
+    monkeypatch.setattr(_runtime, "_allocator", {})  # the fake mallopt below is not kept for later tests
     calls = []
 
     def mallopt(number, value):
@@ -136,6 +139,30 @@ def test_allocator_settings_leave_the_users_settings():
     assert calls == list(ALLOCATOR_SETTINGS.values())
     refused = configure_allocator({}, lambda number, value: 0)  # mallopt reports failure: reported as not set
     assert refused == {}
+
+
+def test_the_heap_kept_mapped_grows_with_the_largest_input_and_never_shrinks(monkeypatch):
+    monkeypatch.setattr(_runtime, "_allocator", {})
+    calls = []
+
+    def mallopt(number, value):
+        calls.append((number, value))
+        return 1
+
+    memory = 16 << 30
+    assert keep_heap_for(800_000, memory=memory) == 0  # the allocator is not tuned: nothing is touched
+    assert calls == []
+    configure_allocator({}, mallopt)
+    trim_number, base = ALLOCATOR_SETTINGS["M_TRIM_THRESHOLD"]
+    assert keep_heap_for(36_000, memory=memory) == base  # a small input: the import's setting stays
+    assert len(calls) == len(ALLOCATOR_SETTINGS)
+    big = keep_heap_for(800_000, memory=memory)
+    assert big == HEAP_KEPT_PER_POINT * 800_000 > base and calls[-1] == (trim_number, big)
+    assert keep_heap_for(400_000, memory=memory) == big  # never lowered
+    assert keep_heap_for(10**9, memory=memory) == memory // 8  # at most an eighth of the memory
+    with stage_run("curvature", 10**9):  # every stage run asks for its input's points
+        pass
+    assert calls[-1] == (trim_number, max(memory, _runtime._physical_memory()) // 8)
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux") or platform.libc_ver()[0] != "glibc", reason="glibc only")
