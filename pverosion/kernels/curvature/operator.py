@@ -111,8 +111,8 @@ def _frame_range(acc, normals, tangents, start, stop):
 BATCH = 32
 """Faces per batch of the curvature passes. A batch's corners are gathered into small arrays
 (:func:`_gather`) and its faces fitted in loops without branches, which the compiler turns into vector
-instructions: 2.5 times faster than one face at a time, with the same results bit for bit (each lane does the
-same operations in the same order)."""
+instructions: about twice as fast as one face at a time (the tensor pass on 1.6M faces, one thread: 52-55 ms
+against 120 ms), with the same results bit for bit (each lane does the same operations in the same order)."""
 
 
 @njit(cache=True, error_model="numpy", inline="always")
