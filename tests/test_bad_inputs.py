@@ -96,6 +96,9 @@ def inputs(tmp_path) -> Path:
         tmp_path / "duplicate.vtp")
     pv.PolyData.from_regular_faces(_sphere().points * [1.0, 1.0, 0.0], faces).save(tmp_path / "flat.vtp")
     pv.PolyData.from_regular_faces(np.zeros_like(_sphere().points), faces).save(tmp_path / "collapsed.vtp")
+    flat_face = np.array(_sphere().points, dtype=np.float64)
+    flat_face[faces[7, 2]] = 0.5 * (flat_face[faces[7, 0]] + flat_face[faces[7, 1]])  # face 7 without area
+    pv.PolyData.from_regular_faces(flat_face, faces).save(tmp_path / "flat_face.vtp")
     soup = _sphere().points[faces].reshape(-1, 3)  # every triangle with its own three points, as an STL file holds them
     pv.PolyData.from_regular_faces(soup, np.arange(len(soup)).reshape(-1, 3)).save(tmp_path / "soup.vtp")
     (tmp_path / "other.json").write_text('{"format": "something else"}')
@@ -120,6 +123,12 @@ CASES = {
     "open mesh, shards": (["shard-graph", "open.vtp", "-o", "out.vtm", "--cells", "5"],
                           r"must be closed: it has \d+ boundary edges",
                           lambda d: pverosion.shard_graph(pv.read(d / "open.vtp"), cells=5)),
+    "face of zero area, shards": (["shard-graph", "flat_face.vtp", "-o", "out.vtm", "--cells", "5"],
+                                  r"faces of zero area, whose corners lie on a line \(first faces: \[7",
+                                  lambda d: pverosion.shard_graph(pv.read(d / "flat_face.vtp"), cells=5)),
+    "face of zero area, freeze-thaw": (["freeze-thaw", "flat_face.vtp", "-o", "out.vtm", "--cells", "5"],
+                                       r"faces of zero area",
+                                       lambda d: pverosion.freeze_thaw(pv.read(d / "flat_face.vtp"), cells=5)),
     "voxels that are not cubes": (["voxel", "flat.vti", "-o", "out.vtm"],
                                   r"needs cubic voxels; the grid's spacing is \(2\.0, 1\.0, 1\.0\)$",
                                   lambda d: pverosion.voxel_erosion(pv.read(d / "flat.vti"))),

@@ -62,6 +62,30 @@ def test_shards_do_not_depend_on_the_winding(winding):
     assert np.array_equal(other.faces, before.faces)  # the input keeps its winding
 
 
+def _with_a_flat_face() -> pv.PolyData:
+    """An icosphere whose face 10 has its third corner moved onto the middle of its first edge: a face of zero
+    area in a closed mesh."""
+    sphere = pv.Icosphere(nsub=3)
+    points, faces = np.array(sphere.points, dtype=np.float64), sphere.regular_faces
+    a, b, c = faces[10]
+    points[c] = 0.5 * (points[a] + points[b])
+    return pv.PolyData.from_regular_faces(points, faces)
+
+
+def test_a_face_of_zero_area_is_refused_and_repair_makes_the_mesh_fracture_closed():
+    """A face whose corners lie on a line bounds no piece of a cell: the shards would have a hole there (three
+    open edges), so both stages refuse the mesh; the repaired mesh gives closed shards of the same volume."""
+    flat = _with_a_flat_face()
+    for call in (lambda m: pverosion.shard_graph(m, cells=50, seed=1),
+                 lambda m: pverosion.freeze_thaw(m, cells=50, iterations=1, paths_per_step=5, seed=1)):
+        with pytest.raises(pverosion.InvalidMeshError, match=r"1 faces of zero area.*\[10\].*pverosion repair"):
+            call(flat)
+    repaired = pverosion.repair(flat)
+    out = pverosion.shard_graph(repaired, cells=50, seed=1)
+    assert _closed(out["surface"]) and _closed(out["shards"])
+    assert out["surface"].volume == pytest.approx(flat.volume, rel=1e-9)
+
+
 @pytest.mark.parametrize("pattern", PATTERNS)
 def test_every_seed_pattern_fills_the_cone(cone, pattern):
     from pverosion.filters.base import polydata_triangles
