@@ -111,6 +111,23 @@ def icosphere(radius: float, nsub: int) -> pv.PolyData:
     return pv.PolyData.from_regular_faces(p, s.regular_faces)
 
 
+def touching_spheres(nsub: int = 2) -> tuple[pv.PolyData, int]:
+    """Two closed unit icospheres side by side that share one vertex and no edge, and that vertex.
+
+    The second is the mirror image of the first through the plane of its
+    rightmost vertex, with its faces reversed (still outward); every point
+    is used.
+    """
+    sphere = icosphere(1.0, nsub)
+    p, f = np.asarray(sphere.points), sphere.regular_faces
+    touch = int(np.argmax(p[:, 0]))
+    others = np.delete(np.arange(len(p)), touch)
+    index = np.full(len(p), touch)
+    index[others] = len(p) + np.arange(len(others))
+    mirrored = p[others] * [-1.0, 1.0, 1.0] + [2.0 * p[touch, 0], 0.0, 0.0]
+    return pv.PolyData.from_regular_faces(np.vstack([p, mirrored]), np.vstack([f, index[f[:, ::-1]]])), touch
+
+
 def height_field(fn, *, n: int = 81, half: float = 1.0) -> pv.PolyData:
     """Triangulated graph z = fn(x, y) on a square grid."""
     x = np.linspace(-half, half, n)

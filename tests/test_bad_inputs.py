@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import pyvista as pv
+from conftest import touching_spheres
 
 import pverosion
 from pverosion.batch import ScenarioError, run_batch
@@ -33,6 +34,8 @@ from pverosion.limits import ResourceLimitError, check_memory, memory_limit
 
 ROOT = Path(__file__).resolve().parents[1]
 EMITTER = "0,0,2,0,0,-1,0.3,200"
+TOUCH = touching_spheres()[1]
+"""The vertex where the two spheres of :func:`touching_spheres` touch."""
 
 
 @pytest.fixture(autouse=True)
@@ -102,6 +105,11 @@ def inputs(tmp_path) -> Path:
     soup = _sphere().points[faces].reshape(-1, 3)  # every triangle with its own three points, as an STL file holds them
     pv.PolyData.from_regular_faces(soup, np.arange(len(soup)).reshape(-1, 3)).save(tmp_path / "soup.vtp")
     (tmp_path / "other.json").write_text('{"format": "something else"}')
+    touching = touching_spheres()[0]
+    touching.save(tmp_path / "touching.vtp")
+    apart = np.flatnonzero(~(touching.regular_faces == TOUCH).any(axis=1))[0]  # a face away from the touching point
+    pv.PolyData.from_regular_faces(touching.points, np.delete(touching.regular_faces, apart, axis=0)).save(
+        tmp_path / "touching_open.vtp")
     return tmp_path
 
 
@@ -160,6 +168,18 @@ CASES = {
                       lambda d: pverosion.curvature(pv.read(d / "quads.vtp"))),
     "non-manifold": (["weather", "fan.vtp", "-o", "out.vtp"], r"non-manifold edges",
                      lambda d: pverosion.weather(pv.read(d / "fan.vtp"))),
+    "non-manifold vertex, weather": (["weather", "touching.vtp", "-o", "out.vtp"],
+                                     (rf"1 non-manifold vertex \(.*the first is vertex {TOUCH}\): repair it first "
+                                      r"\(pverosion repair"),
+                                     lambda d: pverosion.weather(pv.read(d / "touching.vtp"), iterations=2)),
+    "non-manifold vertex, hydraulic": (["hydraulic", "touching.vtp", "-o", "out.vtm", "--emitter", EMITTER],
+                                       rf"1 non-manifold vertex \(.*the first is vertex {TOUCH}\)",
+                                       lambda d: pverosion.hydraulic_erosion(pv.read(d / "touching.vtp"),
+                                                                             emitter=EMITTER)),
+    "non-manifold vertex of an open mesh": (["weather", "touching_open.vtp", "-o", "out.vtp"],
+                                            (rf"1 non-manifold vertex \(.*vertex {TOUCH}\): split each into one "
+                                             r"vertex per fan first \(pverosion repair does so for a closed mesh only"),
+                                            lambda d: pverosion.weather(pv.read(d / "touching_open.vtp"))),
     "collapsed mesh, curvature": (["curvature", "collapsed.vtp", "-o", "out.vtp"], r"mesh has no area",
                                   lambda d: pverosion.curvature(pv.read(d / "collapsed.vtp"))),
     "triangle soup, curvature": (["curvature", "soup.vtp", "-o", "out.vtp"], r"share a vertex.*mesh\.clean\(\)",
@@ -370,6 +390,59 @@ def test_an_error_in_request_information_reaches_the_caller_and_nothing_is_writt
     alg.SetIterations(2)
     out = pv.wrap(alg.run(_sphere()))  # the filter recovers once the option is fixed
     assert out.n_points == _sphere().n_points and alg.last_error is None
+
+
+@pytest.mark.parametrize("stage", ["Weathering", "HydraulicErosion"])
+def test_a_non_manifold_vertex_is_refused_in_a_vtk_pipeline(stage):
+    from vtkmodules.vtkCommonCore import vtkObject
+
+    from pverosion import filters
+
+    touching = touching_spheres()[0]
+    kept_points, kept_faces = np.array(touching.points), np.array(touching.faces)
+    message = rf"1 non-manifold vertex \(.*the first is vertex {TOUCH}\): repair it first"
+    alg = getattr(filters, stage)(iterations=2, **({"emitter": EMITTER} if stage == "HydraulicErosion" else {}))
+    with pytest.raises(InvalidMeshError, match=message):
+        alg.run(touching)
+    alg.SetInputDataObject(0, touching)
+    shown = vtkObject.GetGlobalWarningDisplay()
+    vtkObject.GlobalWarningDisplayOff()
+    try:
+        alg.Update()  # a plain VTK pipeline: the executive reports failure, the filter keeps the error
+    finally:
+        vtkObject.SetGlobalWarningDisplay(shown)
+    assert isinstance(alg.last_error, InvalidMeshError) and re.search(message, str(alg.last_error))
+    np.testing.assert_array_equal(touching.points, kept_points)
+    np.testing.assert_array_equal(touching.faces, kept_faces)
+
+
+# faces of the two spheres meet at the split vertices' common position, which the guard counts as intersecting
+@pytest.mark.filterwarnings("ignore:the input mesh already has")
+def test_the_repair_named_for_a_non_manifold_vertex_splits_it_and_weathering_then_runs():
+    from pverosion.kernels.mesh.topology import vertex_fan_counts
+
+    touching = touching_spheres()[0]
+    with pytest.raises(InvalidMeshError, match=r"repair it first \(pverosion repair, or pverosion.repair"):
+        pverosion.weather(touching, iterations=2)
+    repaired = pverosion.repair(touching)
+    assert repaired.n_points == touching.n_points + 1 and repaired.n_cells == touching.n_cells
+    assert np.all(vertex_fan_counts(repaired.regular_faces, repaired.n_points) == 1)
+    out = pverosion.weather(repaired, iterations=2)
+    assert out.n_points == repaired.n_points and np.all(np.isfinite(out["mean_curvature"]))
+
+
+def test_manifold_surfaces_closed_and_open_are_accepted_with_one_fan_per_vertex():
+    from pverosion.kernels.mesh.topology import boundary_vertices, vertex_fan_counts
+
+    sphere = pv.Icosphere(nsub=2)
+    holes = pv.PolyData.from_regular_faces(sphere.points, np.delete(sphere.regular_faces, [0, 40, 200], axis=0))
+    for mesh in (sphere, holes):
+        assert np.all(vertex_fan_counts(mesh.regular_faces, mesh.n_points) == 1)
+        out = pverosion.weather(mesh, iterations=2)
+        assert out.n_points == mesh.n_points
+    assert boundary_vertices(holes.regular_faces, holes.n_points).sum() == 9  # three holes of three vertices each
+    hydraulic = pverosion.hydraulic_erosion(sphere, emitter=EMITTER, iterations=2)
+    assert hydraulic["mesh"].n_cells == sphere.n_cells
 
 
 def test_keyboard_interrupt_inside_a_pass_is_reraised(monkeypatch):

@@ -1,7 +1,8 @@
 import numpy as np
+import pytest
 import pyvista as pv
 import scipy.sparse as sp
-from conftest import icosphere, one_and_all_threads
+from conftest import icosphere, one_and_all_threads, touching_spheres
 from scipy.sparse.csgraph import connected_components
 
 from pverosion.examples import load_cylinder
@@ -15,7 +16,12 @@ from pverosion.kernels import (
     uniform_laplacian,
     vertex_face_incidence,
 )
-from pverosion.kernels.mesh.topology import halfedge_twins, locality_sorted, sorted_twins
+from pverosion.kernels.mesh.topology import (
+    halfedge_twins,
+    locality_sorted,
+    sorted_twins,
+    vertex_fan_counts,
+)
 
 
 def test_closed_sphere_edges_follow_euler():
@@ -149,3 +155,71 @@ def test_sorted_twins_split_over_threads_equal_one_pass():
     expected = halfedge_twins(many[1], s.n_points, vertex_face_incidence(many[1], s.n_points))
     np.testing.assert_array_equal(many[2], expected[0])
     np.testing.assert_array_equal(many[3], expected[1])
+
+
+def _fans_by_brute_force(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Fans per vertex (V,): the faces around each vertex, linked when two share an edge at it, counted as graph
+    components."""
+    counts = np.zeros(n_vertices, np.int64)
+    for v in range(n_vertices):
+        around = np.flatnonzero((faces == v).any(axis=1))
+        shared = np.array([[len(set(faces[f]) & set(faces[g]) - {v}) > 0 for g in around] for f in around])
+        if len(around):
+            counts[v] = connected_components(sp.csr_matrix(shared.reshape(len(around), len(around))))[0]
+    return counts
+
+
+def _tetrahedra_at_a_vertex(n: int) -> tuple[np.ndarray, int]:
+    """Faces (4n, 3) of ``n`` closed tetrahedra that share only vertex 0, and the number of vertices."""
+    tet = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    return np.vstack([np.where(tet > 0, tet + 3 * k, 0) for k in range(n)]), 1 + 3 * n
+
+
+def _fan_meshes() -> dict[str, tuple[np.ndarray, int]]:
+    """Faces (F, 3) and number of vertices of meshes with and without non-manifold vertices."""
+    sphere = icosphere(1.0, 2)
+    f = sphere.regular_faces.astype(np.int64)
+    cylinder = load_cylinder(n_around=16, n_along=6)
+    plane = pv.Plane(i_resolution=6, j_resolution=6).triangulate()
+    touching, touch = touching_spheres()
+    t = touching.regular_faces.astype(np.int64)
+    flipped = f.copy()
+    flipped[::3] = flipped[::3, ::-1]  # an inconsistent winding joins the fans all the same
+    return {
+        "icosphere": (f, sphere.n_points),
+        "icosphere and an unused vertex": (f, sphere.n_points + 1),
+        "inconsistent winding": (flipped, sphere.n_points),
+        "cylinder (two rims)": (cylinder.regular_faces, cylinder.n_points),
+        "plane with a hole": (np.delete(plane.regular_faces, [30, 31], axis=0), plane.n_points),
+        "touching spheres": (t, touching.n_points),
+        "touching spheres, shuffled": (t[np.random.default_rng(0).permutation(len(t))], touching.n_points),
+        "touching spheres, one open": (np.delete(t, np.flatnonzero((t == touch).any(axis=1))[0], axis=0),
+                                       touching.n_points),
+        "sheets meeting at a corner": (np.array([[0, 1, 2], [0, 3, 4], [0, 4, 5]]), 6),
+        "three tetrahedra at a vertex": _tetrahedra_at_a_vertex(3),
+        "edge of three faces": (np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]]), 5),
+    }
+
+
+@pytest.mark.parametrize("name", list(_fan_meshes()))
+def test_vertex_fan_counts_match_a_brute_force_count(name):
+    faces, n = _fan_meshes()[name]
+    kept = faces.copy()
+    fans = vertex_fan_counts(faces, n)
+    np.testing.assert_array_equal(fans, _fans_by_brute_force(faces, n))
+    np.testing.assert_array_equal(vertex_fan_counts(faces, n, topology=edge_topology(faces, n)), fans)
+    np.testing.assert_array_equal(faces, kept)
+
+
+def test_boundary_vertices_have_one_open_fan_and_touching_surfaces_two():
+    for name in ("cylinder (two rims)", "plane with a hole"):
+        faces, n = _fan_meshes()[name]
+        rim = boundary_vertices(faces, n)
+        assert rim.sum() > 0
+        np.testing.assert_array_equal(vertex_fan_counts(faces, n), np.ones(n))
+    touching, touch = touching_spheres()
+    expected = np.ones(touching.n_points, np.int64)
+    expected[touch] = 2
+    np.testing.assert_array_equal(vertex_fan_counts(touching.regular_faces, touching.n_points), expected)
+    faces, n = _tetrahedra_at_a_vertex(3)
+    assert vertex_fan_counts(faces, n).tolist() == [3] + [1] * (n - 1)

@@ -25,7 +25,7 @@ from pverosion.filters.base import (
 )
 from pverosion.kernels.materials.erodibility import Erodibility
 from pverosion.kernels.mesh.locality import CanonicalMesh
-from pverosion.kernels.mesh.topology import EdgeTopology, edge_topology
+from pverosion.kernels.mesh.topology import EdgeTopology, edge_topology, vertex_fan_counts
 from pverosion.kernels.solver.mesh_evolution import GuardedMeshSolver
 from pverosion.kernels.validation import InvalidMeshError
 
@@ -168,16 +168,27 @@ class MeshSolverFilter(TimeSteppedFilter):
     def _surface(inp) -> tuple[np.ndarray, np.ndarray, EdgeTopology]:
         """Points (V, 3), triangles (F, 3) and edge topology of ``inp``; ``InvalidMeshError`` if it is non-manifold.
 
-        A surface that evolves needs every edge between at most two faces:
-        curvature and the self-intersection guard are undefined elsewhere.
+        A surface that evolves needs every edge between at most two faces and
+        one fan of faces around every vertex: the normal, the curvature and
+        the self-intersection guard are undefined elsewhere (at a vertex where
+        two surfaces touch they would mix both).
         """
         points, faces = polydata_triangles(inp)
         check_proper_faces(faces)
         check_welded(faces, len(points))
-        topology = edge_topology(np.asarray(faces, np.int64), len(points))
+        faces64 = np.asarray(faces, np.int64)
+        topology = edge_topology(faces64, len(points))
         if topology.n_nonmanifold_edges:
             raise InvalidMeshError(f"mesh has {topology.n_nonmanifold_edges} non-manifold edges (shared by more than "
                                    "two faces): repair it first (pverosion repair, or pverosion.repair)")
+        pinched = np.flatnonzero(vertex_fan_counts(faces64, len(points), topology=topology) > 1)
+        if len(pinched):
+            count = f"{len(pinched)} non-manifold {'vertex' if len(pinched) == 1 else 'vertices'}"
+            remedy = ("repair it first (pverosion repair, or pverosion.repair, splits each into one vertex per fan)"
+                      if topology.n_boundary_edges == 0 else "split each into one vertex per fan first (pverosion "
+                      "repair does so for a closed mesh only; this one has boundary edges)")
+            raise InvalidMeshError(f"mesh has {count} (where separate fans of faces meet at one point, as two "
+                                   f"surfaces touching at a vertex; the first is vertex {pinched[0]}): {remedy}")
         return points, faces, topology
 
     def set_erodibility(self, erodibility: Erodibility) -> None:

@@ -25,6 +25,7 @@ __all__ = [
     "one_ring",
     "sorted_twins",
     "vertex_face_incidence",
+    "vertex_fan_counts",
 ]
 
 
@@ -681,3 +682,85 @@ def boundary_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     mask = np.zeros(n_vertices, bool)
     mask[boundary_edges(faces, n_vertices).ravel()] = True
     return mask
+
+
+@njit(cache=True, error_model="numpy")
+def _root(parent, c):
+    """Root of ``c`` in the union-find ``parent``, halving the path on the way."""
+    while parent[c] != c:
+        parent[c] = parent[parent[c]]
+        c = parent[c]
+    return c
+
+
+@njit(cache=True, error_model="numpy")
+def _join(parent, a, b):
+    """Join the sets of ``a`` and ``b`` in the union-find ``parent`` under the lower root."""
+    ra, rb = _root(parent, a), _root(parent, b)
+    if ra < rb:
+        parent[rb] = ra
+    elif rb < ra:
+        parent[ra] = rb
+
+
+@njit(cache=True, error_model="numpy")
+def _count_fans(faces, halfedge_edge, n_edges, fans):
+    """Add the number of fans around each vertex to ``fans`` (V,), zero on entry.
+
+    A union-find over the corners ``3 f + k`` joins, for every further
+    half-edge of an edge (``halfedge_edge`` (3F,), ``-1`` skipped), its two
+    corners with those of the edge's first half-edge at the same vertices;
+    each set left is one fan of its vertex.
+    """
+    n_corners = 3 * faces.shape[0]
+    parent = np.arange(n_corners)
+    first = np.full(n_edges, -1, np.int64)  # the first half-edge of every edge
+    for h in range(n_corners):
+        e = halfedge_edge[h]
+        if e < 0:
+            continue
+        g = first[e]
+        if g < 0:
+            first[e] = h
+            continue
+        h_end = h - h % 3 + (h % 3 + 1) % 3  # the corner where half-edge h ends
+        g_end = g - g % 3 + (g % 3 + 1) % 3
+        if faces[h // 3, h % 3] == faces[g // 3, g % 3]:  # both run the same way
+            _join(parent, h, g)
+            _join(parent, h_end, g_end)
+        else:
+            _join(parent, h, g_end)
+            _join(parent, h_end, g)
+    for c in range(n_corners):
+        if parent[c] == c:
+            fans[faces[c // 3, c % 3]] += 1
+
+
+def vertex_fan_counts(faces: np.ndarray, n_vertices: int, *, topology: EdgeTopology | None = None) -> np.ndarray:
+    """Number of fans of faces around every vertex.
+
+    The faces around a vertex form one fan where each can be reached from
+    any other through edges at that vertex that they share. On a 2-manifold
+    every used vertex has one fan: closed inside the surface, open on its
+    boundary. A vertex with more (two closed surfaces touching at a point,
+    two sheets of an open mesh meeting in a corner) is non-manifold even
+    where every edge is.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64
+    n_vertices : int
+    topology : EdgeTopology, optional
+        Reuse an already built :func:`edge_topology` of ``faces``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (V,), int64
+        Fans per vertex: 0 for a vertex no face uses, 1 on a 2-manifold,
+        more at a non-manifold vertex.
+    """
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    topo = topology if topology is not None else edge_topology(faces, n_vertices)
+    fans = np.zeros(int(n_vertices), np.int64)
+    _count_fans(faces, np.ascontiguousarray(topo.halfedge_edge, dtype=np.int64).ravel(), len(topo.edges), fans)
+    return fans
