@@ -20,7 +20,7 @@ from pverosion.kernels import _vec3 as v3
 from pverosion.kernels._scatter import CHUNKS, OwnedRows, chunk_range, outside_corners, owner_rows
 from pverosion.kernels._threads import for_chunks, for_ranges, range_count
 from pverosion.kernels.mesh.locality import locality_renumbering
-from pverosion.kernels.mesh.topology import sorted_twins
+from pverosion.kernels.mesh.topology import find_root, sorted_twins
 
 __all__ = ["ORIENTATIONS", "Orientation", "SortedOrientation", "orient_faces", "orient_sorted", "winding_number"]
 
@@ -307,14 +307,6 @@ def winding_number(point, points: np.ndarray, faces: np.ndarray) -> float:
 
 
 @njit(cache=True, error_model="numpy")
-def _find(parent, v):
-    while parent[v] != v:
-        parent[v] = parent[parent[v]]
-        v = parent[v]
-    return v
-
-
-@njit(cache=True, error_model="numpy")
 def _centre_extent(points):
     """Centroid ``(x, y, z)`` of the points (V, 3) and their largest extent along an axis."""
     sx = sy = sz = 0.0
@@ -387,12 +379,12 @@ def _hole_cones(points, faces, flip, component, others, origin, volume, rim, par
             n += 1
     for h in rim:
         f, k = h // 3, h % 3
-        ra = _find(parent, faces[f, k])
-        rb = _find(parent, faces[f, (k + 1) % 3])
+        ra = find_root(parent, faces[f, k])
+        rb = find_root(parent, faces[f, (k + 1) % 3])
         parent[ra] = rb
     for h in rim:
         a = faces[h // 3, h % 3]
-        r = _find(parent, a)
+        r = find_root(parent, a)
         for d in range(3):
             centre[r, d] += points[a, d]
         count[r] += 1.0
@@ -402,7 +394,7 @@ def _hole_cones(points, faces, flip, component, others, origin, volume, rim, par
         b = faces[f, (h % 3 + 1) % 3]
         if flip[f]:
             a, b = b, a
-        r = _find(parent, a)
+        r = find_root(parent, a)
         apex = v3.sub(v3.scale(v3.row(centre, r), 1.0 / count[r]), origin)
         pa = v3.sub(v3.row(points, a), origin)
         pb = v3.sub(v3.row(points, b), origin)

@@ -19,6 +19,7 @@ __all__ = [
     "boundary_edges",
     "boundary_vertices",
     "edge_topology",
+    "find_root",
     "halfedge_twins",
     "locality_order",
     "locality_sorted",
@@ -685,8 +686,8 @@ def boundary_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy")
-def _root(parent, c):
-    """Root of ``c`` in the union-find ``parent``, halving the path on the way."""
+def find_root(parent: np.ndarray, c: int) -> int:
+    """Root of ``c`` in the union-find forest ``parent`` (N,) of integers, halving the path on the way."""
     while parent[c] != c:
         parent[c] = parent[parent[c]]
         c = parent[c]
@@ -696,7 +697,7 @@ def _root(parent, c):
 @njit(cache=True, error_model="numpy")
 def _join(parent, a, b):
     """Join the sets of ``a`` and ``b`` in the union-find ``parent`` under the lower root."""
-    ra, rb = _root(parent, a), _root(parent, b)
+    ra, rb = find_root(parent, a), find_root(parent, b)
     if ra < rb:
         parent[rb] = ra
     elif rb < ra:

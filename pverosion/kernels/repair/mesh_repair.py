@@ -58,7 +58,7 @@ from pverosion.kernels.exact.predicates import sign_orient2d
 from pverosion.kernels.mesh.degenerate import remove_degenerate_faces
 from pverosion.kernels.mesh.geometry import average_edge_length
 from pverosion.kernels.mesh.orientation import orient_faces
-from pverosion.kernels.mesh.topology import _incidence, boundary_edges, edge_topology, halfedge_twins
+from pverosion.kernels.mesh.topology import _incidence, boundary_edges, edge_topology, find_root, halfedge_twins
 from pverosion.kernels.spatial.grid import bucket_boxes
 from pverosion.kernels.spatial.mesh_query import ray_winding, ray_winding_without
 from pverosion.kernels.tolerances import REPAIR_TOLERANCE
@@ -353,14 +353,6 @@ def _local_segments(n_faces, table, cut, row_start, local, pairs, segments):
 
 
 @njit(cache=True)
-def _root(parent, v):
-    while parent[v] != v:
-        parent[v] = parent[parent[v]]
-        v = parent[v]
-    return v
-
-
-@njit(cache=True)
 def _patches(faces, n_vertices, cut_edges, pairs_only=False):
     """Patch of every face (F,), labels 0..C-1 in order of first face: faces connected across edges that are
     not intersection edges (sorted keys a * V + b, a < b); with ``pairs_only``, only across edges of exactly
@@ -386,13 +378,13 @@ def _patches(faces, n_vertices, cut_edges, pairs_only=False):
             for s in range(indptr[a], indptr[a + 1]):
                 g = face_ids[s]
                 if g != f and (faces[g, 0] == b or faces[g, 1] == b or faces[g, 2] == b):
-                    r, q = _root(parent, f), _root(parent, g)
+                    r, q = find_root(parent, f), find_root(parent, g)
                     if r != q:
                         parent[max(r, q)] = min(r, q)
     label = np.full(faces.shape[0], -1, np.int64)
     count = np.int64(0)
     for f in range(faces.shape[0]):
-        r = _root(parent, f)
+        r = find_root(parent, f)
         if label[r] < 0:
             label[r] = count
             count += 1

@@ -33,6 +33,7 @@ import numba
 import numpy as np
 from numba import njit
 
+from pverosion.kernels.mesh.topology import find_root
 from pverosion.kernels.shards.graph import (
     ShardGraph,
     _bounding_planes,
@@ -692,16 +693,6 @@ def _gather(pts, tri, link, npts, ntri, ok):
 
 
 @njit(cache=True)
-def _find(parent, p):
-    root = p
-    while parent[root] != root:
-        root = parent[root]
-    while parent[p] != root:
-        parent[p], p = root, parent[p]
-    return root
-
-
-@njit(cache=True)
 def _merge_points(pts, proj, order, tol):
     """Merge points closer than ``tol`` (transitively); returns (new index of every point, merged points).
 
@@ -718,14 +709,14 @@ def _merge_points(pts, proj, order, tol):
             if proj[q] - proj[p] > tol:
                 break
             if (pts[p, 0] - pts[q, 0]) ** 2 + (pts[p, 1] - pts[q, 1]) ** 2 + (pts[p, 2] - pts[q, 2]) ** 2 <= tol2:
-                rp, rq = _find(parent, p), _find(parent, q)
+                rp, rq = find_root(parent, p), find_root(parent, q)
                 if rp != rq:
                     parent[max(rp, rq)] = min(rp, rq)
     new = np.full(n, -1, np.int64)
     out = np.empty((n, 3))
     k = 0
     for p in range(n):
-        r = _find(parent, p)
+        r = find_root(parent, p)
         if new[r] < 0:
             new[r] = k
             for a in range(3):
