@@ -26,7 +26,7 @@ from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkMultiBlockDataSet, vt
 from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline as SDDP
 
 from pverosion._runtime import stage_run
-from pverosion.kernels.validation import InvalidMeshError, as_faces, as_points
+from pverosion.kernels.validation import InvalidMeshError, as_faces, as_points, check_coordinate_precision
 from pverosion.limits import check_memory
 
 __all__ = [
@@ -659,8 +659,19 @@ def _make_getter(name):
 def polydata_triangles(mesh: vtkPolyData, *, check_points: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Points (V, 3) and triangles (F, 3) of a vtkPolyData, without copying where possible.
 
+    The one place where the stages take a surface's points from VTK, in the
+    type they are stored in: points stored in a type too coarse for the mesh's
+    edges (float32 far from the origin) are warned about here
+    (:func:`~pverosion.kernels.validation.check_coordinate_precision`).
     With ``check_points=False`` the coordinates are not tested for NaN or
     infinite values (for callers that check them anyway).
+
+    Warns
+    -----
+    UserWarning
+        If the rounding step of the stored coordinates exceeds
+        :data:`~pverosion.kernels.validation.COORDINATE_STEP_FRACTION` of the
+        median edge length.
 
     Raises
     ------
@@ -689,6 +700,7 @@ def polydata_triangles(mesh: vtkPolyData, *, check_points: bool = True) -> tuple
     points = numpy_support.vtk_to_numpy(mesh.GetPoints().GetData())
     if check_points and not np.isfinite(points).all():
         as_points(points)  # raises InvalidMeshError naming the vertices
+    check_coordinate_precision(points, faces)
     return points, faces
 
 
@@ -757,6 +769,12 @@ def polydata_triangle_mesh(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:
     :func:`~pverosion.kernels.validation.as_triangle_mesh`, without testing
     the coordinates twice. The arrays are views of the mesh's where their
     types allow (float64 points, 64-bit ids): read them, never write them.
+
+    Warns
+    -----
+    UserWarning
+        As :func:`polydata_triangles`: points stored too coarsely for the
+        mesh's edges.
 
     Raises
     ------
