@@ -54,6 +54,19 @@ def assert_filter_equals_kernel(out: pv.PolyData, points: np.ndarray, faces: np.
     return oriented
 
 
+def surface_defects(faces: np.ndarray) -> dict[str, int]:
+    """Defects of a closed manifold triangle surface (F, 3): all zero for one."""
+    ordered = np.sort(faces, axis=1)
+    directed = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    _, per_edge = np.unique(np.sort(directed, axis=1), axis=0, return_counts=True)
+    _, per_directed = np.unique(directed, axis=0, return_counts=True)
+    return {"repeated faces": len(faces) - len(np.unique(ordered, axis=0)),
+            "faces repeating a vertex": int(np.count_nonzero((ordered[:, 0] == ordered[:, 1])
+                                                              | (ordered[:, 1] == ordered[:, 2]))),
+            "edges not in two faces": int(np.count_nonzero(per_edge != 2)),
+            "edges wound alike by two faces": int(np.count_nonzero(per_directed > 1))}
+
+
 def with_x_server(command: list[str], *, env: dict | None = None, screen: str = "1024x768x24") -> list[str]:
     """``command`` under an X server of its own (``xvfb-run``) when there is no display.
 

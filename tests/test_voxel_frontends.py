@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 import pyvista as pv
+from conftest import surface_defects
 
 import pverosion
 from pverosion.cli import main
@@ -10,11 +11,13 @@ from pverosion.examples import load_torus
 from pverosion.filters import VoxelErosion
 from pverosion.filters.voxel import (
     extract_material_surface,
+    voxel_grid,
     voxel_grid_from_height_field,
     voxel_grid_from_mesh,
     voxel_grid_from_volume,
 )
 from pverosion.kernels.mesh.geometry import signed_volume
+from pverosion.kernels.voxel.isosurface import UNTIED_LEVEL, untied_field
 from pverosion.scenes.voxel import meander_grid
 
 
@@ -101,6 +104,66 @@ def test_extracted_surfaces_are_closed_outward_and_agree(method):
     assert set(np.unique(surface["material_id"])) == {1, 2}
     with pytest.raises(ValueError, match="method must be one of"):
         extract_material_surface(grid, method="dual_contouring")
+
+
+def _random_amount(seed: int, steps: int) -> np.ndarray:
+    """(9, 8, 7) amounts drawn from ``steps`` evenly spaced values in [0, 1]."""
+    return np.random.default_rng(seed).integers(0, steps, (9, 8, 7)) / (steps - 1.0)
+
+
+def _amounts_at_the_level():
+    """(amount, iso, whether flying edges gives the same surface) with samples exactly at ``iso``."""
+    plateau = np.zeros((10, 10, 10))
+    plateau[1:9, 1:9, 1:9] = 1.0
+    plateau[2:8, 2:8, 2:8] = 0.5  # a layer at the level inside the material
+    plateau[3:7, 3:7, 3:7] = 1.0
+    radius = np.linalg.norm(np.indices((12, 12, 12)) - 5.5, axis=0)
+    shell = np.where(radius < 3.0, 1.0, np.where(radius < 4.0, 0.5, 0.0))  # its outer layer at the level
+    box = np.zeros((7, 8, 9))
+    box[1:5, 1:6, 1:7] = 1.0
+    return {
+        "plateau at the level": (plateau, 0.5, True),
+        "outer layer at the level": (shell, 0.5, True),
+        "box at the level": (box, 1.0, True),
+        # ambiguous cubes, which flying edges' case table and marching cubes' tests resolve differently
+        "0, 0.5, 1 at random": (_random_amount(5, 3), 0.5, False),
+        "quarters at random": (_random_amount(7, 5), 0.75, False),
+        "0/1 at random, level 1": (_random_amount(0, 2), 1.0, False),
+        "0/1 at random, saddles at the level": (_random_amount(1, 2), 0.5, False),
+    }
+
+
+@pytest.mark.parametrize("case", list(_amounts_at_the_level()))
+def test_marching_cubes_is_closed_and_manifold_with_samples_at_the_level(case):
+    """Samples at the level (and faces whose saddle is at it) gave repeated faces, open and three-fold edges, or no
+    surface at all; the surface encloses the samples at the level, as flying edges does."""
+    amount, iso, same_surface = _amounts_at_the_level()[case]
+    grid = voxel_grid(amount)
+    before = grid.copy(deep=True)
+    surface = extract_material_surface(grid, method="marching_cubes", iso=iso)
+    assert grid == before
+    defects = surface_defects(surface.regular_faces)
+    assert not any(defects.values()), defects
+    volume = signed_volume(np.asarray(surface.points, dtype=float), surface.regular_faces)
+    assert volume > 0
+    if same_surface:
+        reference = extract_material_surface(grid, method="flying_edges", iso=iso)
+        assert volume == pytest.approx(signed_volume(np.asarray(reference.points, dtype=float),
+                                                     reference.regular_faces), rel=1e-6)
+
+
+def test_untied_field_keeps_every_sample_on_its_side_of_the_level():
+    """Samples within 1e-13 of the level stay on their side of it (float32 alone would put them at it), a sample at
+    the level goes to the side asked for, and none is left at the level; the input is not modified."""
+    values = np.array([0.5, 0.5 + 1e-13, 0.5 - 1e-13, 0.0, 1.0, 0.25], dtype=np.float64).reshape(1, 2, 3)
+    for at_level, above in (("above", [1, 1, 0, 0, 1, 0]), ("below", [0, 1, 0, 0, 1, 0])):
+        field, level = untied_field(values, 0.5, at_level=at_level)
+        assert field.dtype == np.float32 and level == UNTIED_LEVEL
+        assert np.array_equal((field > level).ravel(), np.array(above, dtype=bool)), at_level
+        assert not np.any(field == level)
+    samples = values.astype(np.float32)
+    untied_field(samples, 0.5, at_level="above")
+    assert np.array_equal(samples, values.astype(np.float32))
 
 
 def test_filter_steps_continue_from_the_cache_and_conserve_material():

@@ -33,6 +33,7 @@ from pverosion.filters.materials import grid_points
 from pverosion.kernels.materials.field import MaterialField
 from pverosion.kernels.voxel.erosion import MODELS, ErosionParameters, VoxelErosionSolver
 from pverosion.kernels.voxel.fluid import ADVECTION_SCHEMES, VoxelFluid, cell_velocity
+from pverosion.kernels.voxel.isosurface import marching_cubes
 from pverosion.kernels.voxel.pressure import LIQUID
 from pverosion.kernels.voxel.voxelize import height_field_amount, voxelize_mesh
 from pverosion.limits import check_memory, check_work
@@ -277,7 +278,12 @@ def extract_material_surface(image, *, method: str = "flying_edges", iso: float 
     image : vtkImageData
         A voxel grid with ``material_amount``.
     method : {"flying_edges", "marching_cubes"}, default: "flying_edges"
-        VTK's vtkFlyingEdges3D or scikit-image's marching cubes (same surface, different speed).
+        VTK's vtkFlyingEdges3D, or scikit-image's marching cubes (Lewiner et al.) by
+        :func:`pverosion.kernels.voxel.isosurface.marching_cubes`: manifold, with no repeated face, also
+        where amounts equal ``iso``. Both take amounts equal to ``iso`` as material and cross the grid edges at
+        the same points; they may split a cube's polygon into other triangles, and VTK's case table and
+        Lewiner's tests resolve ambiguous cubes (material at two diagonal corners of a face or of the cube and
+        not between) differently.
     iso : float, default: 0.5
 
     Returns
@@ -305,12 +311,11 @@ def extract_material_surface(image, *, method: str = "flying_edges", iso: float 
         alg.Update()
         surface = pv.wrap(alg.GetOutput())
     else:
-        from skimage.measure import marching_cubes
-
-        if padded.max() < iso:
+        # amounts equal to iso are material, as in flying edges
+        verts, faces = marching_cubes(padded, iso, at_level="above", spacing=tuple(spacing))
+        if not len(faces):
             return pv.PolyData()
-        verts, faces, _, _ = marching_cubes(padded, level=iso, spacing=tuple(spacing))
-        # scikit-image orients its triangles towards lower values' opposite side: flip to face the empty side
+        # scikit-image orients its triangles towards the higher values: flip to face the empty side
         surface = pv.PolyData.from_regular_faces(verts + origin, faces[:, ::-1])
     if surface.n_points and "material_id" in image.point_data:
         from scipy.ndimage import distance_transform_edt

@@ -32,6 +32,7 @@ from pverosion.kernels.materials.bsp import (
     build_from_voxel_faces,
 )
 from pverosion.kernels.materials.surfaces import ImplicitSurface
+from pverosion.kernels.voxel.isosurface import marching_cubes
 
 __all__ = [
     "BSPMaterials",
@@ -353,8 +354,6 @@ def bsp_from_volume(
         Bad volume, thresholds outside the value range, unknown ``method`` or a
         ``surface`` the method does not take.
     """
-    from skimage.measure import marching_cubes
-
     raw = np.asarray(values)
     vol = raw.astype(np.float64)
     if vol.ndim != 3 or min(vol.shape) < 2:
@@ -388,7 +387,7 @@ def bsp_from_volume(
     padded = np.pad(vol, 1, constant_values=lo - 1.0)
     triangles, inside = [], []
     for k, level in enumerate(levels, start=1):
-        verts, faces, _, _ = marching_cubes(padded, level=level, allow_degenerate=False)
+        verts, faces = marching_cubes(padded, level, at_level="below")  # material k is above its threshold
         tri = _oriented(verts, faces, padded)
         triangles.append(origin + (tri - 1.0) * spacing)
         inside.append(np.full(len(tri), k))
