@@ -256,6 +256,27 @@ def test_a_failing_job_is_recorded_and_retried_on_the_next_run(tmp_path):
     assert not failed.exists()
 
 
+def test_warnings_of_every_job_go_to_its_log_and_the_results(tmp_path):
+    """A float32 mesh a million units out is warned about in each job of a sweep (a worker's stderr would show the
+    same message once per process): in the job's log and in the results' warnings column; a job without a warning
+    has the column empty."""
+    far = pv.Sphere(radius=0.5)
+    far.points = (np.asarray(far.points, dtype=np.float64) + 1e6).astype(np.float32)
+    for name in ("far.ply", "far_again.ply"):
+        far.save(tmp_path / name)
+    pv.Sphere().save(tmp_path / "near.vtp")
+    path = _write(tmp_path, '[input]\nfile = "far.ply"\n[[stages]]\nstage = "curvature"\n'
+                            '[sweep]\n"input.file" = ["far.ply", "far_again.ply", "near.vtp"]\n')
+    report = run_batch(path, tmp_path / "out", serial=True, progress=False)
+    assert report.failed == 0
+    for row in report.rows[:2]:
+        assert "UserWarning: the points are stored as float32" in row["warnings"]
+        log = (tmp_path / "out" / "jobs" / row["folder"] / "log.txt").read_text()
+        assert "WARNING UserWarning: the points are stored as float32" in log
+    assert report.rows[2]["warnings"] == ""
+    assert "stored as float32" in (tmp_path / "out" / "results.csv").read_text()
+
+
 def test_a_result_the_manifest_missed_is_recovered_not_recomputed(serial_reference, tmp_path):
     scenario, reference = serial_reference
     out = tmp_path / "out"

@@ -474,8 +474,8 @@ def _winding_numbers(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
 
 
 def test_isosurface_trees_insert_a_closed_surface_at_a_threshold_the_labels_reach():
-    """Labels 0/1/2 at threshold 1: the samples at the threshold gave the inserted marching-cubes surface repeated
-    faces and edges not in two faces; it is closed and manifold and encloses exactly the labels above the threshold."""
+    """Labels 0/1/2 at threshold 1, with samples at the threshold: the inserted marching-cubes surface is closed and
+    manifold, encloses exactly the labels above the threshold, and is the surface the tree is built from."""
     from pverosion.kernels.voxel.isosurface import marching_cubes
 
     labels = np.random.default_rng(3).integers(0, 3, (10, 9, 8)).astype(np.uint8)
@@ -501,6 +501,8 @@ def test_bad_input_is_named():
         BSPMaterials.split(Plane(), 0, 3, [1.0, 2.0])
     with pytest.raises(ValueError, match="strictly inside the value range"):
         bsp_from_volume(np.arange(27.0).reshape(3, 3, 3), [100.0])
+    with pytest.raises(ValueError, match="values has 1 NaN or infinite samples"):
+        bsp_from_volume(np.where(np.arange(27) == 4, np.nan, np.arange(27.0)).reshape(3, 3, 3), [10.0])
     with pytest.raises(ValueError, match="method must be one of"):
         bsp_from_volume(np.arange(27.0).reshape(3, 3, 3), [10.0], method="fast")
     with pytest.raises(ValueError, match="takes surface in"):

@@ -8,6 +8,7 @@ import pverosion
 from pverosion.cli import main
 from pverosion.filters import FreezeThaw
 from pverosion.filters.shards import PATTERNS, pattern_seeds
+from pverosion.kernels.shards.graph import build_shards
 from pverosion.scenes.shards import hill_cone
 
 
@@ -80,6 +81,8 @@ def test_a_face_of_zero_area_is_refused_and_repair_makes_the_mesh_fracture_close
                  lambda m: pverosion.freeze_thaw(m, cells=50, iterations=1, paths_per_step=5, seed=1)):
         with pytest.raises(pverosion.InvalidMeshError, match=r"1 faces of zero area.*\[10\].*pverosion repair"):
             call(flat)
+    with pytest.raises(pverosion.InvalidMeshError, match="1 faces of zero area"):  # the kernel itself
+        build_shards(np.array([[0.0, 0.0, 0.0], [0.2, 0.1, 0.0]]), flat.points, flat.regular_faces)
     repaired = pverosion.repair(flat)
     out = pverosion.shard_graph(repaired, cells=50, seed=1)
     assert _closed(out["surface"]) and _closed(out["shards"])

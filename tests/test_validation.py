@@ -4,6 +4,7 @@ import pyvista as pv
 
 import pverosion
 from pverosion.kernels import InvalidMeshError, as_triangle_mesh, principal_curvatures
+from pverosion.kernels.validation import check_coordinate_precision
 
 TRI_P = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
 TRI_F = np.array([[0, 1, 2]])
@@ -69,15 +70,16 @@ def _small_sphere() -> pv.PolyData:
 
 @pytest.mark.parametrize("offset", [1e3, 1e6])
 def test_float32_points_far_from_the_origin_are_warned_about(bunny, offset):
-    """The bunny scan stored as float32 1000 units out is rounded in steps of 6.1e-5, 4 % of its median edge
-    (its mean curvature then 8 % off at the median vertex); a million units out in steps of 0.0625, longer than
-    the edges: the warning names the type, the step and the remedy, and the result is given."""
+    """The bunny scan stored as float32 1000 units out is rounded in steps of 6.1e-5, 4 % of its median edge; a
+    million units out in steps of 0.0625, longer than the edges: the warning names the type, the step and the
+    remedy, and the result is given."""
     import re
 
     far = _stored(bunny, offset, np.float32)
     step = re.escape(f"{float(np.spacing(np.float32(offset))):.3g}")
     with pytest.warns(UserWarning, match=rf"stored as float32, .* are {step} apart while the median edge is "
-                                         r".* long .*float64.*mesh\.points -= mesh\.center"):
+                                         r".* long .*export the model again from its source with float64 "
+                                         r"points.*does not undo the rounding"):
         out = pverosion.curvature(far)
     assert out.n_points == far.n_points
 
@@ -131,6 +133,19 @@ def test_points_stored_finely_enough_are_not_warned_about(bunny, make, offset, d
     with warnings.catch_warnings():
         warnings.simplefilter("error", UserWarning)
         pverosion.curvature(mesh)
+
+
+def test_a_far_point_no_face_uses_is_not_warned_about():
+    """Only the points of the faces count: a float32 sphere near the origin with one unused point 10,000 units out
+    (where float32 steps are 9.8e-4, 8 % of the sphere's edges) is stored finely enough where it matters."""
+    import warnings
+
+    sphere = _stored(_small_sphere(), 0.0, np.float32)
+    stray = pv.PolyData.from_regular_faces(np.vstack([sphere.points, [[1e4, 0.0, 0.0]]]).astype(np.float32),
+                                           sphere.regular_faces)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        check_coordinate_precision(np.asarray(stray.points), stray.regular_faces)
 
 
 def test_coarsely_stored_points_with_nan_are_refused_without_a_warning():

@@ -17,7 +17,7 @@ from pverosion.filters.voxel import (
     voxel_grid_from_volume,
 )
 from pverosion.kernels.mesh.geometry import signed_volume
-from pverosion.kernels.voxel.isosurface import UNTIED_LEVEL, untied_field
+from pverosion.kernels.voxel.isosurface import UNTIED_LEVEL, marching_cubes, untied_field
 from pverosion.scenes.voxel import meander_grid
 
 
@@ -135,8 +135,9 @@ def _amounts_at_the_level():
 
 @pytest.mark.parametrize("case", list(_amounts_at_the_level()))
 def test_marching_cubes_is_closed_and_manifold_with_samples_at_the_level(case):
-    """Samples at the level (and faces whose saddle is at it) gave repeated faces, open and three-fold edges, or no
-    surface at all; the surface encloses the samples at the level, as flying edges does."""
+    """With samples at the level (and faces whose saddle is at it) the surface has no repeated face, no face
+    repeating a vertex and every edge in two faces wound oppositely, and it encloses the samples at the level, as
+    flying edges does."""
     amount, iso, same_surface = _amounts_at_the_level()[case]
     grid = voxel_grid(amount)
     before = grid.copy(deep=True)
@@ -150,6 +151,29 @@ def test_marching_cubes_is_closed_and_manifold_with_samples_at_the_level(case):
         reference = extract_material_surface(grid, method="flying_edges", iso=iso)
         assert volume == pytest.approx(signed_volume(np.asarray(reference.points, dtype=float),
                                                      reference.regular_faces), rel=1e-6)
+
+
+@pytest.mark.parametrize("outlier", [-1e4, 1e12, -1e30])
+def test_marching_cubes_stays_manifold_beside_a_far_outlier(outlier):
+    """One sample far from the level (a bright spot of a CT volume) does not bring the saddles of the 0/1 samples
+    near the level back into scikit-image's tie tolerance."""
+    values = np.pad(np.random.default_rng(1).integers(0, 2, (9, 8, 7)).astype(float), 1)
+    values[1, 1, 1] = outlier  # inside the zero border, so that the surface is closed
+    verts, faces = marching_cubes(values, 0.5, at_level="above")
+    defects = surface_defects(faces)
+    assert len(faces) and not any(defects.values()), defects
+    assert verts.dtype == np.float32 and np.isfinite(verts).all()
+
+
+def test_marching_cubes_refuses_samples_that_are_not_finite_or_beyond_float32():
+    values = np.zeros((4, 4, 4))
+    values[1:3, 1:3, 1:3] = 1.0
+    values[0, 1, 2] = np.nan
+    with pytest.raises(ValueError, match="1 NaN or infinite samples"):
+        marching_cubes(values, 0.5, at_level="above")
+    values[0, 1, 2] = -1e300
+    with pytest.raises(ValueError, match="beyond the float32 range"):
+        marching_cubes(values, 0.5, at_level="above")
 
 
 def test_untied_field_keeps_every_sample_on_its_side_of_the_level():

@@ -25,6 +25,7 @@ import shutil
 import tempfile
 import time
 import traceback
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -81,7 +82,10 @@ def run_job(job: Job, root: str | os.PathLike, *, threads: int | None = None) ->
 
     Running a job whose folder is already complete does nothing and returns
     the stored result (with ``reused`` true), so a job retried after its
-    worker died, or run twice, is written exactly once.
+    worker died, or run twice, is written exactly once. Warnings the stages
+    give (a coarsely stored input, say) go to the job's log and to the
+    ``warnings`` column, every time, where a worker's stderr would show each
+    message once per process at most.
 
     Parameters
     ----------
@@ -95,8 +99,9 @@ def run_job(job: Job, root: str | os.PathLike, *, threads: int | None = None) ->
     -------
     dict
         ``id``, ``index``, ``label``, ``folder``, ``status`` ("done" or
-        "failed"), ``error``, ``seconds``, ``worker``, the swept values and
-        the figures of :func:`job_figures`.
+        "failed"), ``error``, ``warnings`` (their messages, joined by " | "),
+        ``seconds``, ``worker``, the swept values and the figures of
+        :func:`job_figures`.
     """
     jobs = Path(root) / JOBS_FOLDER
     final = jobs / job.folder
@@ -115,15 +120,21 @@ def run_job(job: Job, root: str | os.PathLike, *, threads: int | None = None) ->
     tmp = Path(tempfile.mkdtemp(prefix=f"{TEMP_PREFIX}{job.folder}-", dir=jobs))
     log, handler = _job_logger(job, tmp / "log.txt")
     row = {"id": job.id, "index": job.index, "label": job.label, "folder": job.folder, **job.swept,
-           "status": "done", "error": "", "worker": f"{platform.node()}:{os.getpid()}"}
+           "status": "done", "error": "", "warnings": "", "worker": f"{platform.node()}:{os.getpid()}"}
     start = time.perf_counter()
-    try:
-        write_json(job.to_dict(), tmp / "job.json")
-        row.update(_execute(job, tmp, log))
-    except Exception as exc:  # noqa: BLE001 - a failing job is recorded, the batch goes on
-        row["status"] = "failed"
-        row["error"] = f"{type(exc).__name__}: {exc}"
-        log.error("job failed:\n%s", traceback.format_exc())
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            write_json(job.to_dict(), tmp / "job.json")
+            row.update(_execute(job, tmp, log))
+        except Exception as exc:  # noqa: BLE001 - a failing job is recorded, the batch goes on
+            row["status"] = "failed"
+            row["error"] = f"{type(exc).__name__}: {exc}"
+            log.error("job failed:\n%s", traceback.format_exc())
+    messages = list(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught))
+    for message in messages:
+        log.warning("%s", message)
+    row["warnings"] = " | ".join(messages)
     row["seconds"] = time.perf_counter() - start
     log.info("%s in %.3f s", row["status"], row["seconds"])
     log.removeHandler(handler)

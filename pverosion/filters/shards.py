@@ -61,7 +61,6 @@ from pverosion.kernels.shards.seed_patterns import (
     slab_seeds,
     uniform_seeds,
 )
-from pverosion.kernels.spatial.mesh_query import unit_normals
 from pverosion.kernels.validation import InvalidMeshError
 from pverosion.limits import check_memory, check_work
 
@@ -249,16 +248,11 @@ def _closed_outward(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, 
     Raises
     ------
     InvalidMeshError
-        Degenerate or duplicated faces, faces of zero area, a triangle soup, or boundary edges (an open mesh).
+        Degenerate or duplicated faces, a triangle soup, or boundary edges (an open mesh); faces of zero area
+        are refused by :func:`~pverosion.kernels.shards.graph.build_shards`.
     """
     check_proper_faces(faces)
     check_welded(faces, len(points))
-    # a face without a normal (its corners on a line) bounds no piece of any cell, which would leave a hole
-    flat = np.flatnonzero(~unit_normals(points, faces).any(axis=1))
-    if len(flat):
-        raise InvalidMeshError(f"mesh has {len(flat)} faces of zero area, whose corners lie on a line (first faces: "
-                               f"{flat[:5].tolist()}): the shards would leave a hole at each; pverosion repair "
-                               "flips or collapses them")
     n_open = len(boundary_edges(np.asarray(faces, np.int64), len(points)))
     if n_open:
         raise InvalidMeshError(f"the mesh must be closed: it has {n_open} boundary edges (fill its holes first, "

@@ -17,11 +17,9 @@ coordinate ``x`` these values are ``s = np.spacing(x)`` apart, so every coordina
 Curvature is the turn of the normals per unit length: a vertex off by ``d`` across an edge of length ``h``
 tilts the normals there by about ``d / h``, and the curvature by about ``d / h**2``. Relative to the
 curvature ``k`` that is ``(d / h) / (k h)``, where ``k h``, the angle between neighbouring normals, is a few
-hundredths on a mesh that resolves its shape (0.057 at the median vertex of the bunny scan). A step of 1 % of
-the edge therefore already moves the curvature by a few per cent: the bunny scan with its coordinates rounded
-in steps of 1 % of its median edge has a mean curvature 2 % off at the median vertex and 5 % off at one vertex
-in ten, and the error grows in proportion to the step (8 % and 21 % at 4 %, as the scan stored as float32
-1000 units from the origin). Weathering and hydraulic erosion move the vertices by that curvature."""
+hundredths on a mesh that resolves its shape: a step of 1 % of the edge already moves the curvature by
+a sizeable fraction of itself, and the error grows in proportion to the step. Weathering and hydraulic erosion
+move the vertices by that curvature."""
 
 _SAMPLED_FACES = 1024
 """Faces, at least (and fewer than twice as many), whose edges give the median edge length of a larger mesh."""
@@ -71,13 +69,11 @@ def check_coordinate_precision(points: np.ndarray, faces: np.ndarray) -> None:
     Points stored as float32 (or another float type coarser than float64) far from the origin are rounded
     in steps that may be a sizeable part of an edge, or longer (0.0625 at 1e6 units): the positions, and
     the curvature and erosion computed from them, are wrong before any computation, whatever precision
-    follows. The step is taken at the largest ``|coordinate|`` over the three axes, where it is coarsest:
-    an error in any one coordinate moves the point. It is compared with the median length of the edges
-    of 1024 to 2047 faces taken at a regular stride through the face list (all faces of a smaller mesh;
-    within 0.2 % of the median over all edges on the bunny scan and on a sphere of 1.6 million faces);
-    edges of zero length, and faces naming points that do not exist, are left out. One pass over the
-    points and a few thousand edges: 0.4 ms for 800,000 float32 points (1.6 million faces), about as
-    long as their conversion to float64; nothing for float64 points.
+    follows. The faces taken at a regular stride through the face list, 1024 to 2047 of them (all faces of
+    a smaller mesh), give both figures compared: the step at the largest ``|coordinate|`` of their corners
+    over the three axes (an error in any one coordinate moves the point; points no face uses do not count)
+    and the median length of their edges. Edges of zero length, and faces naming points that do not
+    exist, are left out. No pass over all points or faces; nothing at all for float64 points.
 
     Parameters
     ----------
@@ -90,20 +86,23 @@ def check_coordinate_precision(points: np.ndarray, faces: np.ndarray) -> None:
     -----
     UserWarning
         If the step exceeds :data:`COORDINATE_STEP_FRACTION` of the median edge length; the message names
-        the type, the step, the edge length and the remedies (points in float64, or the model moved near
-        the origin before it is saved). Non-finite coordinates are left to :func:`as_points` to refuse.
+        the type, the step, the edge length and the remedies (the model exported again with float64 points,
+        or moved near the origin). Non-finite coordinates are left to :func:`as_points` to refuse.
     """
     if not np.issubdtype(points.dtype, np.floating) or np.finfo(points.dtype).eps <= np.finfo(np.float64).eps:
         return
     if len(points) == 0 or len(faces) == 0:
         return
-    largest = max(-points.min(), points.max())
+    sample = faces[:: max(1, len(faces) // _SAMPLED_FACES)]
+    sample = sample[((sample >= 0) & (sample < len(points))).all(axis=1)]
+    stored = points[sample]  # (S, 3, 3), in the stored type
+    if stored.size == 0:
+        return
+    largest = max(-stored.min(), stored.max())
     if not np.isfinite(largest):
         return
     step = float(np.spacing(largest))
-    sample = faces[:: max(1, len(faces) // _SAMPLED_FACES)]
-    sample = sample[((sample >= 0) & (sample < len(points))).all(axis=1)]
-    corners = points[sample].astype(np.float64)  # (S, 3, 3)
+    corners = stored.astype(np.float64)
     lengths = np.sqrt(((corners[:, [1, 2, 0]] - corners) ** 2).sum(axis=2)).ravel()
     lengths = lengths[lengths > 0.0]
     if len(lengths) == 0:
@@ -114,9 +113,9 @@ def check_coordinate_precision(points: np.ndarray, faces: np.ndarray) -> None:
     warnings.warn(
         f"the points are stored as {points.dtype}, whose values at the points' largest coordinate "
         f"({float(largest):.6g}) are {step:.3g} apart while the median edge is {edge:.3g} long (a rounding step "
-        f"above {COORDINATE_STEP_FRACTION:.0%} of the edge length puts the curvature a few per cent off): store "
-        "the points as float64, or move the model near the origin before saving it (in PyVista: "
-        "mesh.points -= mesh.center) and back afterwards", UserWarning, stacklevel=2)
+        f"above {COORDINATE_STEP_FRACTION:.0%} of the edge length puts the curvature and the erosion off): export "
+        "the model again from its source with float64 points, or moved near the origin (and move the result "
+        "back); moving the points after they were read does not undo the rounding", UserWarning, stacklevel=2)
 
 
 def as_faces(faces, n_vertices: int) -> np.ndarray:

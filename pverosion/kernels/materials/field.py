@@ -351,13 +351,16 @@ def bsp_from_volume(
     Raises
     ------
     ValueError
-        Bad volume, thresholds outside the value range, unknown ``method`` or a
+        Bad volume (NaN or infinite samples included), thresholds outside the value range, unknown ``method`` or a
         ``surface`` the method does not take.
     """
     raw = np.asarray(values)
     vol = raw.astype(np.float64)
     if vol.ndim != 3 or min(vol.shape) < 2:
         raise ValueError(f"values must be a 3-D array with at least 2 samples per axis; got {vol.shape}")
+    bad = vol.size - int(np.count_nonzero(np.isfinite(vol)))
+    if bad:
+        raise ValueError(f"values has {bad} NaN or infinite samples; their material is undefined")
     levels = np.sort(np.asarray(thresholds, dtype=np.float64).ravel())
     if levels.size == 0 or len(np.unique(levels)) != levels.size:
         raise ValueError("thresholds must be one or more distinct numbers")

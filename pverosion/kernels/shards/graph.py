@@ -54,7 +54,7 @@ from pverosion.kernels.spatial.mesh_query import (
     segment_crossings,
     unit_normals,
 )
-from pverosion.kernels.validation import as_triangle_mesh
+from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh
 
 __all__ = ["ShardGraph", "build_shards"]
 
@@ -592,6 +592,9 @@ def build_shards(seeds: np.ndarray, points: np.ndarray, faces: np.ndarray, *, pr
     ValueError
         Seeds of the wrong shape, non-finite or repeated; a mesh that is
         empty, open or not made of triangles.
+    InvalidMeshError
+        A face of zero area (its corners on a line): it bounds no piece of any
+        cell, so the shards would leave a hole at it.
     """
     seeds = np.asarray(seeds)
     if seeds.ndim != 2 or seeds.shape[1] != 3 or len(seeds) == 0:
@@ -613,6 +616,12 @@ def build_shards(seeds: np.ndarray, points: np.ndarray, faces: np.ndarray, *, pr
     pad = 0.01 * float((hi - lo).max()) + 1e-9
     lo, hi = lo - pad, hi + pad
     margin = 1e-7 * float((hi - lo).max())
+    normals = unit_normals(points, faces)
+    flat = np.flatnonzero(~normals.any(axis=1))
+    if len(flat):
+        raise InvalidMeshError(f"mesh has {len(flat)} faces of zero area, whose corners lie on a line (first faces: "
+                               f"{flat[:5].tolist()}): the shards would leave a hole at each; pverosion repair "
+                               "flips or collapses them")
     start, order, dims, size = seed_grid(seeds, lo, hi)
     bound_n, bound_d = _bounding_planes(points, margin=margin)
     tri_adj = np.where(partner >= 0, partner // 3, -1).reshape(-1, 3)
@@ -621,8 +630,7 @@ def build_shards(seeds: np.ndarray, points: np.ndarray, faces: np.ndarray, *, pr
     edge = float(np.linalg.norm(points[faces[:, 1]] - points[faces[:, 0]], axis=1).mean())
     tgrid = _triangle_grid(points, faces, lo, hi, min(size, max(size / 2, edge / 2)), margin, column=False)
     cgrid = _triangle_grid(points, faces, lo, hi, min(size, max(size / 8, edge / 2)), margin, column=True)
-    args = (seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, faces, unit_normals(points, faces),
-            tri_adj, tgrid, cgrid, margin)
+    args = (seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, faces, normals, tri_adj, tgrid, cgrid, margin)
     n = len(seeds)
     recs, vals, pairs, volume = [], [], [], np.zeros(n)
 
