@@ -21,6 +21,7 @@ __all__ = [
     "edge_topology",
     "find_root",
     "halfedge_twins",
+    "join_sets",
     "locality_order",
     "locality_sorted",
     "one_ring",
@@ -695,8 +696,8 @@ def find_root(parent: np.ndarray, c: int) -> int:
 
 
 @njit(cache=True, error_model="numpy")
-def _join(parent, a, b):
-    """Join the sets of ``a`` and ``b`` in the union-find ``parent`` under the lower root."""
+def join_sets(parent: np.ndarray, a: int, b: int) -> None:
+    """Join the sets of ``a`` and ``b`` in the union-find forest ``parent`` (N,) under the lower of their roots."""
     ra, rb = find_root(parent, a), find_root(parent, b)
     if ra < rb:
         parent[rb] = ra
@@ -727,11 +728,11 @@ def _count_fans(faces, halfedge_edge, n_edges, fans):
         h_end = h - h % 3 + (h % 3 + 1) % 3  # the corner where half-edge h ends
         g_end = g - g % 3 + (g % 3 + 1) % 3
         if faces[h // 3, h % 3] == faces[g // 3, g % 3]:  # both run the same way
-            _join(parent, h, g)
-            _join(parent, h_end, g_end)
+            join_sets(parent, h, g)
+            join_sets(parent, h_end, g_end)
         else:
-            _join(parent, h, g_end)
-            _join(parent, h_end, g)
+            join_sets(parent, h, g_end)
+            join_sets(parent, h_end, g)
     for c in range(n_corners):
         if parent[c] == c:
             fans[faces[c // 3, c % 3]] += 1
@@ -750,7 +751,11 @@ def vertex_fan_counts(faces: np.ndarray, n_vertices: int, *, topology: EdgeTopol
     Parameters
     ----------
     faces : numpy.ndarray, shape (F, 3), int64
+        Triangles as vertex indices, each with three distinct vertices (the
+        stages refuse others first, with
+        :func:`~pverosion.filters.base.check_proper_faces`); any orientation.
     n_vertices : int
+        Number of vertices V (unused ones included).
     topology : EdgeTopology, optional
         Reuse an already built :func:`edge_topology` of ``faces``.
 

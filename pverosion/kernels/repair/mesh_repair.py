@@ -58,7 +58,14 @@ from pverosion.kernels.exact.predicates import sign_orient2d
 from pverosion.kernels.mesh.degenerate import remove_degenerate_faces
 from pverosion.kernels.mesh.geometry import average_edge_length
 from pverosion.kernels.mesh.orientation import orient_faces
-from pverosion.kernels.mesh.topology import _incidence, boundary_edges, edge_topology, find_root, halfedge_twins
+from pverosion.kernels.mesh.topology import (
+    _incidence,
+    boundary_edges,
+    edge_topology,
+    find_root,
+    halfedge_twins,
+    join_sets,
+)
 from pverosion.kernels.spatial.grid import bucket_boxes
 from pverosion.kernels.spatial.mesh_query import ray_winding, ray_winding_without
 from pverosion.kernels.tolerances import REPAIR_TOLERANCE
@@ -378,9 +385,7 @@ def _patches(faces, n_vertices, cut_edges, pairs_only=False):
             for s in range(indptr[a], indptr[a + 1]):
                 g = face_ids[s]
                 if g != f and (faces[g, 0] == b or faces[g, 1] == b or faces[g, 2] == b):
-                    r, q = find_root(parent, f), find_root(parent, g)
-                    if r != q:
-                        parent[max(r, q)] = min(r, q)
+                    join_sets(parent, f, g)
     label = np.full(faces.shape[0], -1, np.int64)
     count = np.int64(0)
     for f in range(faces.shape[0]):

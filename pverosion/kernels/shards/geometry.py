@@ -33,7 +33,7 @@ import numba
 import numpy as np
 from numba import njit
 
-from pverosion.kernels.mesh.topology import find_root
+from pverosion.kernels.mesh.topology import find_root, join_sets
 from pverosion.kernels.shards.graph import (
     ShardGraph,
     _bounding_planes,
@@ -709,9 +709,7 @@ def _merge_points(pts, proj, order, tol):
             if proj[q] - proj[p] > tol:
                 break
             if (pts[p, 0] - pts[q, 0]) ** 2 + (pts[p, 1] - pts[q, 1]) ** 2 + (pts[p, 2] - pts[q, 2]) ** 2 <= tol2:
-                rp, rq = find_root(parent, p), find_root(parent, q)
-                if rp != rq:
-                    parent[max(rp, rq)] = min(rp, rq)
+                join_sets(parent, p, q)
     new = np.full(n, -1, np.int64)
     out = np.empty((n, 3))
     k = 0
