@@ -26,6 +26,7 @@ import numpy as np
 import pyvista as pv
 
 from pverosion.filters.hydraulic import particles_polydata
+from pverosion.filters.mesh_solver import evolving_surface
 from pverosion.io import write_atomic
 from pverosion.kernels.fluid.particle_fluid import Emitter, FluidParameters
 from pverosion.kernels.hydraulic.erosion import HydraulicSolver
@@ -108,7 +109,8 @@ class LiveSession:
         if not 1 <= threads <= available:
             raise ValueError(f"threads must be in [1, {available}]; got {threads!r}")
         self.threads = int(threads)
-        points, faces = as_triangle_mesh(np.asarray(mesh.points, dtype=np.float64), mesh.regular_faces)
+        points, faces, _ = evolving_surface(mesh)  # the checks of the stage's filter
+        points, faces = as_triangle_mesh(np.asarray(points, dtype=np.float64), faces)
         self.stage = stage
         self._input = (points, faces)
         self._options = options

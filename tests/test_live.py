@@ -10,6 +10,8 @@ import pytest
 import pverosion
 from pverosion.examples import load_cube
 
+from conftest import touching_spheres
+
 
 def _display(plotter, point) -> tuple[float, float]:
     renderer = plotter.renderer
@@ -156,3 +158,16 @@ def test_live_rejects_bad_thread_count():
     for threads in (0, numba.config.NUMBA_NUM_THREADS + 1):
         with pytest.raises(ValueError, match="threads"):
             pverosion.interactive(load_cube(resolution=4), off_screen=True, threads=threads)
+
+
+@pytest.mark.parametrize("stage", ["weather", "hydraulic"])
+def test_live_refuses_what_the_stage_refuses(stage):
+    """The live session checks its mesh as the stage's filter does: a non-manifold vertex is refused, and float32
+    points a million units out are warned about."""
+    pinched, _ = touching_spheres()
+    with pytest.raises(pverosion.InvalidMeshError, match="1 non-manifold vertex"):
+        pverosion.interactive(pinched, stage=stage, off_screen=True)
+    far = load_cube(resolution=4)
+    far.points = (np.asarray(far.points, dtype=np.float64) + 1e6).astype(np.float32)
+    with pytest.warns(UserWarning, match="stored as float32"):
+        pverosion.interactive(far, stage=stage, off_screen=True).plotter.close()

@@ -21,7 +21,7 @@ from pverosion.filters.base import (
     set_field_value,
     set_multiblock,
 )
-from pverosion.filters.mesh_solver import MeshSolverFilter, mesh_solver_output
+from pverosion.filters.mesh_solver import MeshSolverFilter, evolving_surface, mesh_solver_output
 from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS
 from pverosion.kernels.fluid.particle_fluid import Drain, Emitter, FluidParameters
 from pverosion.kernels.hydraulic.erosion import MODELS, HydraulicSolver, ShearParameters
@@ -248,7 +248,7 @@ class HydraulicErosion(MeshSolverFilter):
     _canonical: CanonicalMesh | None = None  # the numbering of the solver made by _new_solver
 
     def _new_solver(self, inp) -> HydraulicSolver:
-        points, faces, topology = self._surface(inp)
+        points, faces, topology = evolving_surface(inp)
         emitters = list(self.structured_option("emitter"))
         drains = list(self.structured_option("drain"))
         if not emitters:

@@ -29,7 +29,7 @@ from pverosion.kernels.mesh.topology import EdgeTopology, edge_topology, vertex_
 from pverosion.kernels.solver.mesh_evolution import GuardedMeshSolver
 from pverosion.kernels.validation import InvalidMeshError
 
-__all__ = ["MeshSolverFilter", "mesh_solver_output", "output_rows"]
+__all__ = ["MeshSolverFilter", "evolving_surface", "mesh_solver_output", "output_rows"]
 
 
 def _renumbered_cells(cells: vtkCellArray, ids: np.ndarray, n_input: int) -> vtkCellArray:
@@ -150,6 +150,37 @@ def mesh_solver_output(solver: GuardedMeshSolver, source, out, *, prefix: str = 
     set_field_value(out, "topology_repairs", solver.repairs)
 
 
+def evolving_surface(inp) -> tuple[np.ndarray, np.ndarray, EdgeTopology]:
+    """Points (V, 3), triangles (F, 3) and edge topology of vtkPolyData ``inp``; ``InvalidMeshError`` if it is
+    non-manifold.
+
+    The checks of every front end of weathering and hydraulic erosion (the
+    filters and the live session), with those of :func:`polydata_triangles`
+    (finite points, a warning for coarsely stored ones). A surface that
+    evolves needs every edge between at most two faces and one fan of faces
+    around every vertex: the normal, the curvature and the self-intersection
+    guard are undefined elsewhere (at a vertex where two surfaces touch they
+    would mix both).
+    """
+    points, faces = polydata_triangles(inp)
+    check_proper_faces(faces)
+    check_welded(faces, len(points))
+    faces64 = np.asarray(faces, np.int64)
+    topology = edge_topology(faces64, len(points))
+    if topology.n_nonmanifold_edges:
+        raise InvalidMeshError(f"mesh has {topology.n_nonmanifold_edges} non-manifold edges (shared by more than "
+                               "two faces): repair it first (pverosion repair, or pverosion.repair)")
+    pinched = np.flatnonzero(vertex_fan_counts(faces64, len(points), topology=topology) > 1)
+    if len(pinched):
+        count = f"{len(pinched)} non-manifold {'vertex' if len(pinched) == 1 else 'vertices'}"
+        remedy = ("repair it first (pverosion repair, or pverosion.repair, splits each into one vertex per fan)"
+                  if topology.n_boundary_edges == 0 else "split each into one vertex per fan first (pverosion "
+                  "repair does so for a closed mesh only; this one has boundary edges)")
+        raise InvalidMeshError(f"mesh has {count} (where separate fans of faces meet at one point, as two "
+                               f"surfaces touching at a vertex; the first is vertex {pinched[0]}): {remedy}")
+    return points, faces, topology
+
+
 class MeshSolverFilter(TimeSteppedFilter):
     """A stage over a :class:`~pverosion.kernels.solver.mesh_evolution.GuardedMeshSolver`, kept between updates.
 
@@ -163,33 +194,6 @@ class MeshSolverFilter(TimeSteppedFilter):
     def __init__(self, *, erodibility: Erodibility = None, **options):
         super().__init__(**options)
         self._erodibility = erodibility
-
-    @staticmethod
-    def _surface(inp) -> tuple[np.ndarray, np.ndarray, EdgeTopology]:
-        """Points (V, 3), triangles (F, 3) and edge topology of ``inp``; ``InvalidMeshError`` if it is non-manifold.
-
-        A surface that evolves needs every edge between at most two faces and
-        one fan of faces around every vertex: the normal, the curvature and
-        the self-intersection guard are undefined elsewhere (at a vertex where
-        two surfaces touch they would mix both).
-        """
-        points, faces = polydata_triangles(inp)
-        check_proper_faces(faces)
-        check_welded(faces, len(points))
-        faces64 = np.asarray(faces, np.int64)
-        topology = edge_topology(faces64, len(points))
-        if topology.n_nonmanifold_edges:
-            raise InvalidMeshError(f"mesh has {topology.n_nonmanifold_edges} non-manifold edges (shared by more than "
-                                   "two faces): repair it first (pverosion repair, or pverosion.repair)")
-        pinched = np.flatnonzero(vertex_fan_counts(faces64, len(points), topology=topology) > 1)
-        if len(pinched):
-            count = f"{len(pinched)} non-manifold {'vertex' if len(pinched) == 1 else 'vertices'}"
-            remedy = ("repair it first (pverosion repair, or pverosion.repair, splits each into one vertex per fan)"
-                      if topology.n_boundary_edges == 0 else "split each into one vertex per fan first (pverosion "
-                      "repair does so for a closed mesh only; this one has boundary edges)")
-            raise InvalidMeshError(f"mesh has {count} (where separate fans of faces meet at one point, as two "
-                                   f"surfaces touching at a vertex; the first is vertex {pinched[0]}): {remedy}")
-        return points, faces, topology
 
     def set_erodibility(self, erodibility: Erodibility) -> None:
         """Per-vertex array (V,) or callable of points (N, 3) -> (N,); None for uniform."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pverosion.filters.base import (
     Param,
 )
-from pverosion.filters.mesh_solver import MeshSolverFilter, mesh_solver_output
+from pverosion.filters.mesh_solver import MeshSolverFilter, evolving_surface, mesh_solver_output
 from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS
 from pverosion.kernels.mesh.orientation import ORIENTATIONS
 from pverosion.kernels.solver.mesh_evolution import REPAIR_MODES
@@ -60,7 +60,7 @@ class Weathering(MeshSolverFilter):
     )
 
     def _new_solver(self, inp) -> WeatheringSolver:
-        points, faces, _ = self._surface(inp)
+        points, faces, _ = evolving_surface(inp)
         return WeatheringSolver(
             points,
             faces,
