@@ -149,3 +149,25 @@ def height_field(fn, *, n: int = 81, half: float = 1.0) -> pv.PolyData:
     from pverosion.examples import periodic_grid_surface
 
     return periodic_grid_surface(grid, wrap_u=False, wrap_v=False)
+
+
+def assert_pipeline_keeps_the_error(alg, mesh: pv.PolyData, message: str) -> None:
+    """``alg`` given ``mesh`` in a plain VTK pipeline: ``Update()`` fails (VTK's warning muted), the filter keeps an
+    ``InvalidMeshError`` matching ``message`` (a regex) in ``last_error``, and the mesh is unchanged."""
+    import re
+
+    from vtkmodules.vtkCommonCore import vtkObject
+
+    from pverosion.kernels.validation import InvalidMeshError
+
+    kept_points, kept_faces = np.array(mesh.points), np.array(mesh.faces)
+    alg.SetInputDataObject(0, mesh)
+    shown = vtkObject.GetGlobalWarningDisplay()
+    vtkObject.GlobalWarningDisplayOff()
+    try:
+        alg.Update()  # the executive reports the failure; the filter keeps the error
+    finally:
+        vtkObject.SetGlobalWarningDisplay(shown)
+    assert isinstance(alg.last_error, InvalidMeshError) and re.search(message, str(alg.last_error))
+    np.testing.assert_array_equal(mesh.points, kept_points)
+    np.testing.assert_array_equal(mesh.faces, kept_faces)

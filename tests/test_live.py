@@ -6,11 +6,10 @@ import time
 
 import numpy as np
 import pytest
+from conftest import touching_spheres
 
 import pverosion
 from pverosion.examples import load_cube
-
-from conftest import touching_spheres
 
 
 def _display(plotter, point) -> tuple[float, float]:
