@@ -72,8 +72,9 @@ def check_coordinate_precision(points: np.ndarray, faces: np.ndarray) -> None:
     follows. The faces taken at a regular stride through the face list, 1024 to 2047 of them (all faces of
     a smaller mesh), give both figures compared: the step at the largest ``|coordinate|`` of their corners
     over the three axes (an error in any one coordinate moves the point; points no face uses do not count)
-    and the median length of their edges. Edges of zero length, and faces naming points that do not
-    exist, are left out. No pass over all points or faces; nothing at all for float64 points.
+    and the median length of the two edges from their first corners. Edges of zero length, and faces
+    naming points that do not exist, are left out. No pass over all points or faces; nothing at all for
+    float64 points.
 
     Parameters
     ----------
@@ -94,7 +95,8 @@ def check_coordinate_precision(points: np.ndarray, faces: np.ndarray) -> None:
     if len(points) == 0 or len(faces) == 0:
         return
     sample = faces[:: max(1, len(faces) // _SAMPLED_FACES)]
-    sample = sample[((sample >= 0) & (sample < len(points))).all(axis=1)]
+    if not (sample.min() >= 0 and sample.max() < len(points)):
+        sample = sample[((sample >= 0) & (sample < len(points))).all(axis=1)]
     stored = points[sample]  # (S, 3, 3), in the stored type
     if stored.size == 0:
         return
@@ -103,7 +105,8 @@ def check_coordinate_precision(points: np.ndarray, faces: np.ndarray) -> None:
         return
     step = float(np.spacing(largest))
     corners = stored.astype(np.float64)
-    lengths = np.sqrt(((corners[:, [1, 2, 0]] - corners) ** 2).sum(axis=2)).ravel()
+    sides = corners[:, 1:] - corners[:, :1]  # the two edges from each sampled face's first corner
+    lengths = np.sqrt(np.einsum("fkd,fkd->fk", sides, sides)).ravel()
     lengths = lengths[lengths > 0.0]
     if len(lengths) == 0:
         return
