@@ -161,7 +161,7 @@ def test_live_rejects_bad_thread_count():
 
 @pytest.mark.parametrize("stage", ["weather", "hydraulic"])
 def test_live_refuses_what_the_stage_refuses(stage):
-    """The live session checks its mesh as the stage's filter does: a non-manifold vertex is refused, and float32
+    """The live viewer checks its mesh as the stage's filter does: a non-manifold vertex is refused, and float32
     points a million units out are warned about."""
     pinched, _ = touching_spheres()
     with pytest.raises(pverosion.InvalidMeshError, match="1 non-manifold vertex"):

@@ -155,7 +155,7 @@ def evolving_surface(inp) -> tuple[np.ndarray, np.ndarray, EdgeTopology]:
     non-manifold.
 
     The checks of every front end of weathering and hydraulic erosion (the
-    filters and the live session), with those of :func:`polydata_triangles`
+    filters and the live viewer), with those of :func:`polydata_triangles`
     (finite points, a warning for coarsely stored ones). A surface that
     evolves needs every edge between at most two faces and one fan of faces
     around every vertex: the normal, the curvature and the self-intersection
