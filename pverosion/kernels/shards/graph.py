@@ -630,7 +630,8 @@ def build_shards(seeds: np.ndarray, points: np.ndarray, faces: np.ndarray, *, pr
     edge = float(np.linalg.norm(points[faces[:, 1]] - points[faces[:, 0]], axis=1).mean())
     tgrid = _triangle_grid(points, faces, lo, hi, min(size, max(size / 2, edge / 2)), margin, column=False)
     cgrid = _triangle_grid(points, faces, lo, hi, min(size, max(size / 8, edge / 2)), margin, column=True)
-    args = (seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, faces, normals, tri_adj, tgrid, cgrid, margin)
+    args = (seeds, start, order, dims, size, lo, hi, bound_n, bound_d, points, faces, normals, tri_adj, tgrid, cgrid,
+            margin)
     n = len(seeds)
     recs, vals, pairs, volume = [], [], [], np.zeros(n)
 
