@@ -165,6 +165,16 @@ def test_marching_cubes_stays_manifold_beside_a_far_outlier(outlier):
     assert verts.dtype == np.float32 and np.isfinite(verts).all()
 
 
+@pytest.mark.parametrize("method", ["flying_edges", "marching_cubes"])
+def test_surface_extraction_refuses_amounts_that_are_not_finite(method):
+    """Flying edges made a surface through a NaN amount without a word; both extractors name it."""
+    amount = np.zeros((6, 6, 6))
+    amount[1:5, 1:5, 1:5] = 1.0
+    amount[2, 3, 1] = np.nan
+    with pytest.raises(ValueError, match="material_amount has 1 NaN or infinite values"):
+        extract_material_surface(voxel_grid(amount), method=method)
+
+
 def test_marching_cubes_refuses_samples_that_are_not_finite_or_beyond_float32():
     values = np.zeros((4, 4, 4))
     values[1:3, 1:3, 1:3] = 1.0

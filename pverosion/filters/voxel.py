@@ -289,11 +289,19 @@ def extract_material_surface(image, *, method: str = "flying_edges", iso: float 
     Returns
     -------
     pyvista.PolyData
+
+    Raises
+    ------
+    ValueError
+        An unknown ``method``, or NaN or infinite amounts.
     """
     if method not in EXTRACTORS:
         raise ValueError(f"method must be one of {EXTRACTORS}; got {method!r}")
     image = pv.wrap(image)
     amount = _grid_array(image, "material_amount", required=True)
+    bad = amount.size - int(np.count_nonzero(np.isfinite(amount)))
+    if bad:
+        raise ValueError(f"material_amount has {bad} NaN or infinite values; the surface through them is undefined")
     spacing = np.array(image.spacing)
     origin = np.array(image.origin) - spacing
     padded = np.pad(amount, 1)
