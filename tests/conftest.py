@@ -171,3 +171,32 @@ def assert_pipeline_keeps_the_error(alg, mesh: pv.PolyData, message: str) -> Non
     assert isinstance(alg.last_error, InvalidMeshError) and re.search(message, str(alg.last_error))
     np.testing.assert_array_equal(mesh.points, kept_points)
     np.testing.assert_array_equal(mesh.faces, kept_faces)
+
+
+@numba.njit(parallel=True, cache=True)
+def _winding_numbers(samples, points, faces):
+    """Van Oosterom and Strackee's solid angles summed over the faces, for every sample point."""
+    out = np.empty(samples.shape[0])
+    for i in numba.prange(samples.shape[0]):
+        total = 0.0
+        for f in range(faces.shape[0]):
+            u, v, w = faces[f, 0], faces[f, 1], faces[f, 2]
+            px, py, pz = samples[i, 0], samples[i, 1], samples[i, 2]
+            ax, ay, az = points[u, 0] - px, points[u, 1] - py, points[u, 2] - pz
+            bx, by, bz = points[v, 0] - px, points[v, 1] - py, points[v, 2] - pz
+            cx, cy, cz = points[w, 0] - px, points[w, 1] - py, points[w, 2] - pz
+            la = np.sqrt(ax * ax + ay * ay + az * az)
+            lb = np.sqrt(bx * bx + by * by + bz * bz)
+            lc = np.sqrt(cx * cx + cy * cy + cz * cz)
+            det = ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
+            div = (la * lb * lc + (ax * bx + ay * by + az * bz) * lc + (bx * cx + by * cy + bz * cz) * la
+                   + (cx * ax + cy * ay + cz * az) * lb)
+            total += 2.0 * np.arctan2(det, div)
+        out[i] = total / (4.0 * np.pi)
+    return out
+
+
+def winding_numbers(samples, points, faces):
+    """Generalised winding numbers (S,) of a mesh at the sample points (S, 3)."""
+    return _winding_numbers(np.ascontiguousarray(samples, dtype=float), np.ascontiguousarray(points, dtype=float),
+                            np.ascontiguousarray(faces, dtype=np.int64))

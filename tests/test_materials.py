@@ -1,6 +1,6 @@
 import numpy as np
 import pytest
-from conftest import DATA, surface_defects
+from conftest import DATA, surface_defects, winding_numbers
 
 from pverosion.kernels.materials.bsp import (
     LATTICE_DIRECTIONS,
@@ -462,17 +462,6 @@ def test_voxel_c_bsp_does_not_depend_on_voxel_order():
         assert np.array_equal(getattr(again, name), getattr(tree, name))
 
 
-def _winding_numbers(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Generalised winding number (P,) of triangles (T, 3, 3) around each point (P, 3): 1 inside an outward closed
-    surface, 0 outside."""
-    a, b, c = (triangles[None, :, i] - points[:, None] for i in range(3))
-    la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
-    det = np.einsum("ptk,ptk->pt", a, np.cross(b, c))
-    den = la * lb * lc + np.einsum("ptk,ptk->pt", a, b) * lc + np.einsum("ptk,ptk->pt", b, c) * la \
-        + np.einsum("ptk,ptk->pt", c, a) * lb
-    return np.arctan2(det, den).sum(axis=1) / (2 * np.pi)
-
-
 def test_isosurface_trees_insert_a_closed_surface_at_a_threshold_the_labels_reach():
     """Labels 0/1/2 at threshold 1, with samples at the threshold: the inserted marching-cubes surface is closed and
     manifold, encloses exactly the labels above the threshold, and is the surface the tree is built from."""
@@ -483,10 +472,11 @@ def test_isosurface_trees_insert_a_closed_surface_at_a_threshold_the_labels_reac
     verts, faces = marching_cubes(padded, 1.0, at_level="below")
     defects = surface_defects(faces)
     assert not any(defects.values()), defects
-    triangles = verts[faces[:, ::-1]].astype(np.float64)  # outward
+    outward = faces[:, ::-1]
     off_level = labels.ravel() != 1  # the samples at the threshold lie on the surface
-    winding = _winding_numbers(_centres(labels.shape)[off_level] + 1.0, triangles)
+    winding = winding_numbers(_centres(labels.shape)[off_level] + 1.0, verts, outward)
     np.testing.assert_allclose(winding, (labels.ravel() == 2)[off_level], atol=1e-6)
+    triangles = verts[outward].astype(np.float64)
     normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
     field = bsp_from_volume(labels, (1,), method="complete", surface="isosurface")
     assert field.stats.extracted_faces == np.count_nonzero(np.linalg.norm(normals, axis=1) > 0)

@@ -6,8 +6,8 @@ manifold3d."""
 import numpy as np
 import pytest
 import pyvista as pv
+from conftest import winding_numbers
 from test_intersection_curves import crossed_torus
-from test_mesh_repair import winding_numbers
 
 import pverosion
 import pverosion._accessor  # noqa: F401 - registers mesh.erosion without an installed entry point
