@@ -20,7 +20,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from pverosion.kernels._jit import njit
 
 CHUNKS = 4
 """Number of face chunks (and accumulators) of every scatter-add."""

@@ -7,7 +7,8 @@ numba kernel costs several times more.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from pverosion.kernels._jit import njit
 
 __all__ = ["lower_bound"]
 

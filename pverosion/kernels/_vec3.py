@@ -14,7 +14,8 @@ its kernels take to compile after an install.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from pverosion.kernels._jit import njit
 
 
 @njit(cache=True)

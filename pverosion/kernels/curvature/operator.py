@@ -13,9 +13,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._jit import njit
 from pverosion.kernels._scatter import OwnedRows, add_outside, chunk_range, owned_add, owned_rows, owned_start
 from pverosion.kernels._threads import for_chunks, for_ranges
 from pverosion.kernels.mesh.geometry import face_normal_terms, mixed_corner_areas, normal_terms

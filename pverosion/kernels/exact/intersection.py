@@ -17,9 +17,9 @@ Faces that share a vertex are adjacent and never reported; degenerate faces
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._jit import njit
 from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges
 from pverosion.kernels.tolerances import COPLANAR
 from pverosion.kernels.validation import as_triangle_mesh

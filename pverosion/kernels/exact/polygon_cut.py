@@ -107,8 +107,8 @@ with a 5-point chord, 13 ms for 2000 points on one triangle).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels._search import lower_bound
 from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges
 from pverosion.kernels.exact.predicates import orient2d

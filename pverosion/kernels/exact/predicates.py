@@ -59,7 +59,9 @@ import math
 
 import llvmlite.binding as llvm
 import numpy as np
-from numba import cfunc, float64, int64, njit, types
+from numba import cfunc, float64, int64, types
+
+from pverosion.kernels._jit import njit
 
 __all__ = [
     "CCW_ERRBOUND_A",

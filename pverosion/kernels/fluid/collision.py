@@ -8,9 +8,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._jit import njit
 from pverosion.kernels.fluid.grids import _cell_box, _corner, _first_visit, _row
 from pverosion.kernels.fluid.params import (
     _GAP_ROUNDING,

@@ -6,9 +6,10 @@ Part of :mod:`pverosion.kernels.fluid.particle_fluid` (its docstring describes t
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._jit import njit
 from pverosion.kernels._scatter import CHUNKS, chunk_range
 from pverosion.kernels.fluid.params import _CELL_CHUNK, _LIMIT, _MARGIN, _MESH_CELL, _MESH_CELLS, _PAIRS, _SPHERE_GROWTH
 

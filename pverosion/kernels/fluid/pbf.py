@@ -8,9 +8,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._jit import njit
 from pverosion.kernels.fluid.collision import _clamp, _plane_push
 from pverosion.kernels.fluid.params import _PAIRS, PLANE_REACH
 

@@ -55,9 +55,10 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._jit import njit
 from pverosion.kernels.curvature.normalize import SOLVER_NORMALIZATIONS, normalize_shifted
 from pverosion.kernels.curvature.operator import CurvatureTracker
 from pverosion.kernels.fluid.collision import _closest_on_boundary, _over

@@ -24,8 +24,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels.spatial.grid import bucket_boxes
 from pverosion.kernels.tolerances import RAY_SHADOW, RAY_SHIFT, RAY_START
 from pverosion.kernels.validation import as_triangle_mesh

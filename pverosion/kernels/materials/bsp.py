@@ -51,8 +51,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels.files import atomic_path
 from pverosion.kernels.materials.surfaces import (
     N_PARAMS,

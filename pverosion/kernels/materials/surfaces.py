@@ -13,7 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
+
+from pverosion.kernels._jit import njit
 
 __all__ = [
     "Cylinder",

@@ -29,9 +29,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._jit import njit
 from pverosion.kernels.mesh.remesh import collapse_cost, collapsible, merge_vertices, star_vertices
 from pverosion.kernels.mesh.topology import _incidence
 

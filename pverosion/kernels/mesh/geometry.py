@@ -7,9 +7,9 @@ int64 (see :func:`pverosion.kernels.validation.as_triangle_mesh`).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._jit import njit
 from pverosion.kernels._scatter import CHUNKS, chunk_range, chunk_total
 from pverosion.kernels._threads import for_chunks, for_ranges
 from pverosion.kernels.mesh.topology import edge_topology

@@ -5,8 +5,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numba import njit
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels._threads import for_ranges
 from pverosion.kernels.mesh.topology import one_ring
 

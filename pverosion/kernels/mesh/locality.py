@@ -20,8 +20,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels._scatter import CHUNKS, chunk_range
 from pverosion.kernels._threads import for_chunks, for_ranges
 

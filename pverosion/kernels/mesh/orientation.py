@@ -14,9 +14,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._jit import njit
 from pverosion.kernels._scatter import CHUNKS, OwnedRows, chunk_range, outside_corners, owner_rows
 from pverosion.kernels._threads import for_chunks, for_ranges, range_count
 from pverosion.kernels.mesh.locality import locality_renumbering

@@ -22,9 +22,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._jit import njit
 from pverosion.kernels._scatter import CHUNKS, chunk_range
 from pverosion.kernels._threads import for_chunks, for_ranges
 from pverosion.kernels.mesh.topology import _incidence, edge_topology, one_ring

@@ -10,8 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels._threads import for_ranges, range_count
 
 __all__ = [

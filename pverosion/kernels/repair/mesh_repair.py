@@ -39,8 +39,8 @@ import warnings
 from dataclasses import dataclass, replace
 
 import numpy as np
-from numba import njit
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels._search import lower_bound
 from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges
 from pverosion.kernels.exact.intersection import intersecting_faces

@@ -38,10 +38,10 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels.random_streams import stream_state
 from pverosion.kernels.shards.graph import ShardGraph
 from pverosion.kernels.solver.protocol import SolverLoop

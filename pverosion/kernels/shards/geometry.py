@@ -31,8 +31,8 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
-from numba import njit
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels.mesh.topology import find_root, join_sets
 from pverosion.kernels.shards.graph import (
     ShardGraph,

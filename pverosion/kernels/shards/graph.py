@@ -39,10 +39,11 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels._search import lower_bound
 from pverosion.kernels.mesh.topology import halfedge_twins
 from pverosion.kernels.shards.voronoi import MAX_FACE_VERTICES, MAX_FACES, cell_polygons, seed_grid

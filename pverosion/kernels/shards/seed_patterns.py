@@ -26,8 +26,9 @@ import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels.mesh.topology import halfedge_twins
 from pverosion.kernels.spatial.mesh_query import TriangleIndex, point_inside
 from pverosion.kernels.validation import as_triangle_mesh

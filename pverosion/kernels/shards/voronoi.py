@@ -17,8 +17,8 @@ that share an edge get bit-identical points.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels.spatial.grid import bucket_points, grid_over
 
 __all__ = ["MAX_FACES", "MAX_FACE_VERTICES", "box_cell", "cell_polygons", "seed_grid"]

@@ -50,9 +50,9 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-from numba import njit
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._jit import njit
 from pverosion.kernels._scatter import CHUNKS, chunk_range
 from pverosion.kernels._threads import for_chunks, for_ranges
 from pverosion.kernels.curvature.operator import CurvatureOperator

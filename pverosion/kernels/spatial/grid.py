@@ -13,7 +13,8 @@ parallel every substep.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from pverosion.kernels._jit import njit
 
 __all__ = ["box_items", "bucket_boxes", "bucket_points", "grid_over"]
 

@@ -14,8 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels.exact.predicates import orient2d
 from pverosion.kernels.spatial.grid import box_items, bucket_boxes
 

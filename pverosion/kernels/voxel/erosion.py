@@ -31,8 +31,9 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels.solver.protocol import SolverLoop
 from pverosion.kernels.voxel.fluid import VoxelFluid, cell_velocity
 

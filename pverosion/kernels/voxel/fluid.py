@@ -34,8 +34,9 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels.voxel.pressure import AIR, LIQUID, SOLID, divergence, pressure_solve
 
 __all__ = ["FluidStep", "VoxelFluid", "cell_velocity"]

@@ -23,7 +23,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
+
+from pverosion.kernels._jit import njit
 
 __all__ = ["AIR", "LIQUID", "SOLID", "PoissonSolve", "divergence", "pressure_solve"]
 

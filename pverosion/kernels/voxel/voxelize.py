@@ -7,8 +7,9 @@ cell centres ``origin + (i, j, k) * spacing``.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
+from pverosion.kernels._jit import njit
 from pverosion.kernels.validation import as_triangle_mesh
 
 __all__ = ["height_field_amount", "voxelize_mesh"]

@@ -9,9 +9,9 @@ dependencies.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from pverosion.kernels import _vec3 as v3
+from pverosion.kernels._jit import njit
 from pverosion.kernels._threads import for_ranges
 from pverosion.kernels.tolerances import FLAT_CURVATURE, ZERO_DIRECTION
 
