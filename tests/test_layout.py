@@ -43,6 +43,17 @@ def test_every_kernel_module_imports_without_vtk_pyvista_tqdm_or_matplotlib():
     assert done.returncode == 0, done.stderr
 
 
+def test_every_kernel_is_compiled_by_the_package_decorator():
+    """pverosion.kernels._jit.njit: without numba's C-callable wrapper, which no kernel uses (compile time)."""
+    from numba.core.registry import CPUDispatcher
+
+    kernels = [(name, key, value) for name in KERNEL_MODULES
+               for key, value in vars(importlib.import_module(name)).items()
+               if isinstance(value, CPUDispatcher) and value.py_func.__module__ == name]
+    assert len(kernels) > 300
+    assert [(name, key) for name, key, value in kernels if not value.targetoptions.get("no_cfunc_wrapper")] == []
+
+
 @pytest.mark.parametrize("old", sorted(MOVED_MODULES))
 def test_an_old_module_path_is_the_moved_module_with_a_deprecation_warning(old):
     sys.modules.pop(old, None)
