@@ -48,6 +48,21 @@ def test_grid_agrees_with_brute_force_on_random_soups():
         assert {tuple(p) for p in intersecting_pairs(points, faces)} == pairs
 
 
+def test_faces_touching_where_distinct_vertices_coincide_meet_apart_and_are_adjacent_when_shared():
+    above = [[0.0, 0.0, 0.0], [-1.0, 0.0, 1.0], [0.0, -1.0, 1.0]]  # its own corner on T's corner (0, 0, 0)
+    piercing = [[0.2, 0.2, -1.0], [0.2, 0.2, 1.0], [0.3, 0.9, 0.0]]  # through T, away from that corner
+    points = np.vstack([T, above, piercing])
+    faces = np.arange(9).reshape(3, 3)
+    assert intersecting_faces(points, faces).tolist() == [True, True, True]
+    assert intersecting_faces(points, faces, coincident="shared").tolist() == [True, False, True]
+    assert intersecting_faces(points, faces[:2], coincident="shared").tolist() == [False, False]
+    only_above = np.array([False, True, False])
+    assert intersecting_faces(points, faces, coincident="shared", query=only_above).tolist() == [False] * 3
+    assert intersecting_faces(points, faces, query=only_above).tolist() == [True, True, False]
+    with pytest.raises(ValueError, match="coincident must be"):
+        intersecting_faces(points, faces, coincident="joined")
+
+
 def test_clean_closed_meshes_have_no_intersections():
     s = icosphere(1.0, 5)
     assert not intersecting_faces(s.points, s.regular_faces).any()

@@ -692,7 +692,19 @@ def spatial_order(points, faces) -> np.ndarray:
     return np.argsort(_face_boxes(pts, fcs, keys=True)[3], kind="stable")
 
 
-def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
+def _coincident_corners_joined(points: np.ndarray, faces: np.ndarray, among: np.ndarray) -> np.ndarray | None:
+    """``faces`` (F, 3) with every corner of the faces ``among`` (F,) that has the position of another such corner
+    replaced by the lowest index of that position; None when no two of those corners share a position."""
+    corners = np.unique(faces[among])
+    _, first, inverse = np.unique(points[corners], axis=0, return_index=True, return_inverse=True)
+    if len(first) == len(corners):
+        return None
+    joined = np.arange(len(points))
+    joined[corners] = corners[first][inverse.ravel()]  # np.unique's first index of a row is its lowest
+    return joined[faces]
+
+
+def intersecting_faces(points, faces, *, query=None, order=None, coincident: str = "apart") -> np.ndarray:
     """Faces that intersect a non-adjacent face of the same mesh.
 
     Parameters
@@ -705,6 +717,12 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
     order : array_like of int, shape (F,), optional
         A face permutation from :func:`spatial_order` (of this or an earlier
         state of the mesh). It only affects speed; by default it is computed.
+    coincident : {"apart", "shared"}
+        Distinct vertices at one position: two vertices, so faces touching
+        there intersect ("apart"), or one vertex, which makes the faces that
+        use it adjacent, as faces that share a vertex are ("shared": the
+        surface that ``pverosion repair`` makes of two parts meeting at a
+        point, whose contact is the input's, not an intersection).
 
     Returns
     -------
@@ -712,6 +730,19 @@ def intersecting_faces(points, faces, *, query=None, order=None) -> np.ndarray:
         Faces that meet a non-adjacent face (in a tested pair).
         ``result.any()`` tells whether the mesh self-intersects.
     """
+    if coincident not in ("apart", "shared"):
+        raise ValueError(f"coincident must be 'apart' or 'shared'; got {coincident!r}")
+    hits = _intersecting_faces(points, faces, query, order)
+    if coincident == "shared" and hits.any():
+        pts, fcs = as_triangle_mesh(points, faces)
+        joined = _coincident_corners_joined(pts, fcs, hits)
+        if joined is not None:  # a pair that meets with the vertices joined meets apart: both faces are hits
+            hits = _intersecting_faces(pts, joined, hits if query is None else hits & np.asarray(query, bool), order)
+    return hits
+
+
+def _intersecting_faces(points, faces, query, order) -> np.ndarray:
+    """:func:`intersecting_faces` with distinct vertices apart."""
     pts, fcs = as_triangle_mesh(points, faces)
     q = np.ones(len(fcs), bool) if query is None else np.asarray(query, dtype=bool)
     if q.shape != (len(fcs),):

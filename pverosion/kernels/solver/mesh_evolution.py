@@ -9,7 +9,7 @@ step.
 
 Self-intersection guard (periodic, with rollback): every ``check_every``
 steps, and at every step the caller asks to see, the mesh is tested for
-intersecting non-adjacent triangles
+intersecting non-adjacent triangles (two that touch only where distinct vertices coincide count as adjacent)
 (:func:`pverosion.kernels.exact.intersection.intersecting_faces`). A clean mesh
 becomes the new restart point. When intersections have appeared, the solver
 restores the last clean state, halves the displacement length of the
@@ -391,10 +391,12 @@ class GuardedMeshSolver(SolverLoop):
         self._since_clean = (np.arange(len(self.points)), np.zeros(len(self.faces), bool))
 
     def _intersections(self, query: np.ndarray | None = None) -> np.ndarray:
-        """Mask (F,) of the faces meeting a non-adjacent face (in pairs with a ``query`` face)."""
+        """Mask (F,) of the faces meeting a non-adjacent face (in pairs with a ``query`` face); faces that touch
+        only where distinct vertices coincide (the input's own contact, as ``pverosion repair`` leaves two parts
+        that met at a point) do not count."""
         if self._order is None:
             self._order = spatial_order(self.points, self.faces)
-        return intersecting_faces(self.points, self.faces, query=query, order=self._order)
+        return intersecting_faces(self.points, self.faces, query=query, order=self._order, coincident="shared")
 
     def _moved_faces(self) -> np.ndarray | None:
         """Faces that are not, vertex for vertex, faces of the restart point (None: all faces).
