@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import pyvista as pv
-from conftest import assert_pipeline_keeps_the_error, touching_spheres
+from conftest import assert_pipeline_keeps_the_error, icosphere, touching_spheres
 
 import pverosion
 from pverosion.batch import ScenarioError, run_batch
@@ -402,6 +402,32 @@ def test_a_non_manifold_vertex_is_refused_in_a_vtk_pipeline(stage):
     with pytest.raises(InvalidMeshError, match=message):
         alg.run(touching)
     assert_pipeline_keeps_the_error(alg, touching, message)
+
+
+def _fin() -> tuple[np.ndarray, np.ndarray]:
+    """Three triangles on one edge."""
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1.0]])
+    return points, np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])
+
+
+@pytest.mark.parametrize("solver", ["WeatheringSolver", "HydraulicSolver"])
+def test_the_solvers_called_from_python_refuse_what_their_filters_refuse(solver):
+    from pverosion.kernels.fluid.params import FluidParameters
+    from pverosion.kernels.hydraulic.erosion import HydraulicSolver
+    from pverosion.kernels.weathering.model import WeatheringSolver
+
+    make = {"WeatheringSolver": WeatheringSolver,
+            "HydraulicSolver": lambda p, f: HydraulicSolver(p, f, fluid=FluidParameters(radius=0.05))}[solver]
+    touching = touching_spheres()[0]
+    sphere = icosphere(1.0, 2)
+    repeated = np.vstack([sphere.regular_faces, sphere.regular_faces[[7]]])
+    cases = [((touching.points, touching.regular_faces), rf"1 non-manifold vertex .*vertex {TOUCH}\): repair it"),
+             (_fin(), r"1 non-manifold edges .*repair it first"),
+             ((sphere.points, repeated), r"1 faces that repeat the vertices of another face \(first copies: \[320\]"),
+             ((sphere.points, np.vstack([sphere.regular_faces, [[3, 3, 5]]])), r"1 degenerate faces that use a vertex")]
+    for (points, faces), message in cases:
+        with pytest.raises(InvalidMeshError, match=message):
+            make(np.asarray(points, float), faces)
 
 
 # the two spheres still touch where the split vertices coincide: the guard takes that contact for the input's

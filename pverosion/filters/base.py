@@ -704,64 +704,6 @@ def polydata_triangles(mesh: vtkPolyData, *, check_points: bool = True) -> tuple
     return points, faces
 
 
-def check_proper_faces(faces: np.ndarray) -> None:
-    """``InvalidMeshError`` if a triangle uses a vertex twice or repeats another triangle's vertices.
-
-    Stages that need a 2-manifold (or closed) surface call it first, so that
-    such faces are named as what they are rather than reported as the
-    boundary or non-manifold edges they make.
-
-    Parameters
-    ----------
-    faces : numpy.ndarray, shape (F, 3)
-        Triangles as vertex indices.
-
-    Raises
-    ------
-    InvalidMeshError
-        Naming how many faces are degenerate or duplicated, and the first ones.
-    """
-    faces = np.asarray(faces)
-    repeated = np.flatnonzero((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2])
-                              | (faces[:, 2] == faces[:, 0]))
-    if len(repeated):
-        raise InvalidMeshError(f"mesh has {len(repeated)} degenerate faces that use a vertex twice (first faces: "
-                               f"{repeated[:5].tolist()}): remove them first (mesh.clean() drops them)")
-    _, first = np.unique(np.sort(faces, axis=1), axis=0, return_index=True)
-    if len(first) < len(faces):
-        copies = np.setdiff1d(np.arange(len(faces)), first)
-        raise InvalidMeshError(f"mesh has {len(copies)} faces that repeat the vertices of another face (first "
-                               f"copies: {copies[:5].tolist()}): remove the duplicates first")
-
-
-def check_welded(faces: np.ndarray, n_points: int) -> None:
-    """``InvalidMeshError`` if the triangles share no vertex: a triangle soup whose coincident points were not merged.
-
-    Such a mesh (an STL file read without merging its points, or a PLY or
-    OBJ written from one) has only boundary edges, so every curvature is zero
-    and nothing would move; the message names the cause and the fix instead.
-    A single triangle is accepted. Only a mesh with at least three points
-    per triangle can be one, so a welded mesh (about half a point per
-    triangle) costs no pass over its faces.
-
-    Parameters
-    ----------
-    faces : numpy.ndarray, shape (F, 3)
-        Triangles as vertex indices.
-    n_points : int
-        Number of points of the mesh.
-
-    Raises
-    ------
-    InvalidMeshError
-        If there are two or more triangles and no vertex is used by two of them.
-    """
-    faces = np.asarray(faces)
-    if len(faces) > 1 and n_points >= faces.size and len(np.unique(faces)) == faces.size:
-        raise InvalidMeshError(f"no two of the mesh's {len(faces)} triangles share a vertex (an unwelded triangle "
-                               "soup, as in an STL file): merge the coincident points first (mesh.clean())")
-
-
 def polydata_triangle_mesh(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:
     """Points (V, 3) as contiguous float64 and triangles (F, 3) as contiguous int64, checked once.
 

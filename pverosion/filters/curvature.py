@@ -9,7 +9,6 @@ import numpy as np
 from pverosion.filters.base import (
     ErosionFilter,
     Param,
-    check_welded,
     polydata_triangle_mesh,
     replace_triangles,
     set_field_value,
@@ -19,7 +18,7 @@ from pverosion.kernels.curvature.normalize import NORMALIZATIONS, normalize_curv
 from pverosion.kernels.curvature.operator import CurvatureOperator, principal_curvatures
 from pverosion.kernels.mesh.locality import locality_renumbering
 from pverosion.kernels.mesh.orientation import ORIENTATIONS, orient_sorted
-from pverosion.kernels.validation import InvalidMeshError
+from pverosion.kernels.validation import InvalidMeshError, check_welded
 
 __all__ = ["Curvature"]
 

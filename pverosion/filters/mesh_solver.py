@@ -16,8 +16,6 @@ from vtkmodules.vtkCommonDataModel import vtkCellArray
 
 from pverosion.filters.base import (
     TimeSteppedFilter,
-    check_proper_faces,
-    check_welded,
     polydata_triangles,
     replace_triangles,
     set_field_value,
@@ -25,9 +23,8 @@ from pverosion.filters.base import (
 )
 from pverosion.kernels.materials.erodibility import Erodibility
 from pverosion.kernels.mesh.locality import CanonicalMesh
-from pverosion.kernels.mesh.topology import EdgeTopology, edge_topology, vertex_fan_counts
-from pverosion.kernels.solver.mesh_evolution import GuardedMeshSolver
-from pverosion.kernels.validation import InvalidMeshError
+from pverosion.kernels.mesh.topology import EdgeTopology
+from pverosion.kernels.solver.mesh_evolution import GuardedMeshSolver, evolvable_topology
 
 __all__ = ["MeshSolverFilter", "evolving_surface", "mesh_solver_output", "output_rows"]
 
@@ -151,34 +148,18 @@ def mesh_solver_output(solver: GuardedMeshSolver, source, out, *, prefix: str = 
 
 
 def evolving_surface(inp) -> tuple[np.ndarray, np.ndarray, EdgeTopology]:
-    """Points (V, 3), triangles (F, 3) and edge topology of vtkPolyData ``inp``; ``InvalidMeshError`` if it is
-    non-manifold.
+    """Points (V, 3), triangles (F, 3) and edge topology of vtkPolyData ``inp``; ``InvalidMeshError`` if a
+    :class:`~pverosion.kernels.solver.mesh_evolution.GuardedMeshSolver` cannot evolve it.
 
     The checks of every front end of weathering and hydraulic erosion (the
-    filters and the live viewer), with those of :func:`polydata_triangles`
-    (finite points, a warning for coarsely stored ones). A surface that
-    evolves needs every edge between at most two faces and one fan of faces
-    around every vertex: the normal, the curvature and the self-intersection
-    guard are undefined elsewhere (at a vertex where two surfaces touch they
-    would mix both).
+    filters and the live viewer), before any other work: those of
+    :func:`polydata_triangles` (finite points, a warning for coarsely stored
+    ones) and :func:`~pverosion.kernels.solver.mesh_evolution.evolvable_topology`
+    (proper, welded faces on a 2-manifold), which the solver repeats for its
+    Python callers.
     """
     points, faces = polydata_triangles(inp)
-    check_proper_faces(faces)
-    check_welded(faces, len(points))
-    faces64 = np.asarray(faces, np.int64)
-    topology = edge_topology(faces64, len(points))
-    if topology.n_nonmanifold_edges:
-        raise InvalidMeshError(f"mesh has {topology.n_nonmanifold_edges} non-manifold edges (shared by more than "
-                               "two faces): repair it first (pverosion repair, or pverosion.repair)")
-    pinched = np.flatnonzero(vertex_fan_counts(faces64, len(points), topology=topology) > 1)
-    if len(pinched):
-        count = f"{len(pinched)} non-manifold {'vertex' if len(pinched) == 1 else 'vertices'}"
-        remedy = ("repair it first (pverosion repair, or pverosion.repair, splits each into one vertex per fan)"
-                  if topology.n_boundary_edges == 0 else "split each into one vertex per fan first (pverosion "
-                  "repair does so for a closed mesh only; this one has boundary edges)")
-        raise InvalidMeshError(f"mesh has {count} (where separate fans of faces meet at one point, as two "
-                               f"surfaces touching at a vertex; the first is vertex {pinched[0]}): {remedy}")
-    return points, faces, topology
+    return points, faces, evolvable_topology(faces, len(points))
 
 
 class MeshSolverFilter(TimeSteppedFilter):

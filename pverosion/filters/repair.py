@@ -27,7 +27,7 @@ from vtkmodules.util import numpy_support
 from vtkmodules.vtkCommonCore import vtkPoints, vtkStringArray
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 
-from pverosion.filters.base import ErosionFilter, Param, check_proper_faces, polydata_triangles, replace_triangles
+from pverosion.filters.base import ErosionFilter, Param, polydata_triangles, replace_triangles
 from pverosion.kernels.exact.intersection_curves import CASES
 from pverosion.kernels.mesh.geometry import signed_volume
 from pverosion.kernels.mesh.topology import boundary_edges
@@ -39,7 +39,7 @@ from pverosion.kernels.repair.mesh_repair import (
     outward_parts,
     repair_intersections,
 )
-from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh
+from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh, check_proper_faces
 
 __all__ = ["REPAIR_ORIENTATIONS", "BooleanOperation", "RepairIntersections", "repair_output"]
 

@@ -33,8 +33,6 @@ from pverosion.filters.base import (
     ErosionFilter,
     Param,
     TimeSteppedFilter,
-    check_proper_faces,
-    check_welded,
     parse_numbers,
     polydata_triangles,
     set_field_value,
@@ -61,7 +59,7 @@ from pverosion.kernels.shards.seed_patterns import (
     slab_seeds,
     uniform_seeds,
 )
-from pverosion.kernels.validation import InvalidMeshError
+from pverosion.kernels.validation import InvalidMeshError, check_proper_faces, check_welded
 from pverosion.limits import check_memory, check_work
 
 __all__ = ["CORE_CHOICES", "PATTERNS", "FreezeThaw", "ShardGraph", "pattern_seeds", "shard_blocks"]

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 
 __all__ = ["COORDINATE_STEP_FRACTION", "InvalidMeshError", "as_faces", "as_points", "as_triangle_mesh",
-           "check_coordinate_precision"]
+           "check_coordinate_precision", "check_proper_faces", "check_welded"]
 
 COORDINATE_STEP_FRACTION = 0.01
 """Largest rounding step of stored coordinates, as a fraction of the median edge length, taken without a warning.
@@ -183,3 +183,66 @@ def as_triangle_mesh(points, faces) -> tuple[np.ndarray, np.ndarray]:
     """
     pts = as_points(points)
     return pts, as_faces(faces, pts.shape[0])
+
+
+def check_proper_faces(faces: np.ndarray) -> None:
+    """``InvalidMeshError`` if a triangle uses a vertex twice or repeats another triangle's vertices.
+
+    Stages that need a 2-manifold (or closed) surface call it first, so that
+    such faces are named as what they are rather than reported as the
+    boundary or non-manifold edges they make.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3)
+        Triangles as vertex indices.
+
+    Raises
+    ------
+    InvalidMeshError
+        Naming how many faces are degenerate or duplicated, and the first ones.
+    """
+    faces = np.asarray(faces)
+    repeated = np.flatnonzero((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2])
+                              | (faces[:, 2] == faces[:, 0]))
+    if len(repeated):
+        raise InvalidMeshError(f"mesh has {len(repeated)} degenerate faces that use a vertex twice (first faces: "
+                               f"{repeated[:5].tolist()}): remove them first (mesh.clean() drops them)")
+    ordered = np.sort(faces, axis=1).astype(np.int64, copy=False)
+    if len(ordered) and ordered[:, 0].min() >= 0 and ordered[:, 2].max() < 1 << 21:
+        keys = (ordered[:, 0] << 42) | (ordered[:, 1] << 21) | ordered[:, 2]  # one integer per set of vertices
+    else:
+        keys = np.unique(ordered, axis=0, return_inverse=True)[1].ravel()
+    order = np.argsort(keys, kind="stable")
+    copies = np.sort(order[1:][keys[order[1:]] == keys[order[:-1]]])  # each face after the first with its vertices
+    if len(copies):
+        raise InvalidMeshError(f"mesh has {len(copies)} faces that repeat the vertices of another face (first "
+                               f"copies: {copies[:5].tolist()}): remove the duplicates first")
+
+
+def check_welded(faces: np.ndarray, n_points: int) -> None:
+    """``InvalidMeshError`` if the triangles share no vertex: a triangle soup whose coincident points were not merged.
+
+    Such a mesh (an STL file read without merging its points, or a PLY or
+    OBJ written from one) has only boundary edges, so every curvature is zero
+    and nothing would move; the message names the cause and the fix instead.
+    A single triangle is accepted. Only a mesh with at least three points
+    per triangle can be one, so a welded mesh (about half a point per
+    triangle) costs no pass over its faces.
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3)
+        Triangles as vertex indices.
+    n_points : int
+        Number of points of the mesh.
+
+    Raises
+    ------
+    InvalidMeshError
+        If there are two or more triangles and no vertex is used by two of them.
+    """
+    faces = np.asarray(faces)
+    if len(faces) > 1 and n_points >= faces.size and len(np.unique(faces)) == faces.size:
+        raise InvalidMeshError(f"no two of the mesh's {len(faces)} triangles share a vertex (an unwelded triangle "
+                               "soup, as in an STL file): merge the coincident points first (mesh.clean())")

@@ -753,7 +753,7 @@ def vertex_fan_counts(faces: np.ndarray, n_vertices: int, *, topology: EdgeTopol
     faces : numpy.ndarray, shape (F, 3), int64
         Triangles as vertex indices, each with three distinct vertices (the
         stages refuse others first, with
-        :func:`~pverosion.filters.base.check_proper_faces`); any orientation.
+        :func:`~pverosion.kernels.validation.check_proper_faces`); any orientation.
     n_vertices : int
         Number of vertices V (unused ones included).
     topology : EdgeTopology, optional

@@ -60,13 +60,61 @@ from pverosion.kernels.exact.intersection import intersecting_faces, spatial_ord
 from pverosion.kernels.mesh.geometry import average_edge_length, vertex_normals
 from pverosion.kernels.mesh.orientation import ORIENTATIONS, orient_faces
 from pverosion.kernels.mesh.remesh import CollapseTopology, apply_collapses, plan_collapses, short_edges_and_mean_length
+from pverosion.kernels.mesh.topology import EdgeTopology, edge_topology, vertex_fan_counts
 from pverosion.kernels.solver.protocol import SolverLoop
-from pverosion.kernels.validation import as_triangle_mesh
+from pverosion.kernels.validation import InvalidMeshError, as_triangle_mesh, check_proper_faces, check_welded
 
-__all__ = ["REPAIR_MODES", "GuardedMeshSolver", "volume_area"]
+__all__ = ["REPAIR_MODES", "GuardedMeshSolver", "evolvable_topology", "volume_area"]
 
 REPAIR_MODES = ("retry", "topology", "off")
 """Accepted values of the ``repair`` option."""
+
+
+def evolvable_topology(faces: np.ndarray, n_vertices: int) -> EdgeTopology:
+    """The :func:`~pverosion.kernels.mesh.topology.edge_topology` of a surface that a :class:`GuardedMeshSolver`
+    can evolve; ``InvalidMeshError`` naming what makes another surface unfit, and the remedy.
+
+    A surface that evolves needs proper, welded triangles
+    (:func:`~pverosion.kernels.validation.check_proper_faces`,
+    :func:`~pverosion.kernels.validation.check_welded`), every edge between at
+    most two faces and one fan of faces around every vertex: the normal, the
+    curvature and the self-intersection guard are undefined elsewhere (at a
+    vertex where two surfaces touch they would mix both).
+
+    Parameters
+    ----------
+    faces : numpy.ndarray, shape (F, 3), int64
+        Triangles as vertex indices in ``[0, V)``.
+    n_vertices : int
+        Number of vertices V.
+
+    Returns
+    -------
+    EdgeTopology
+
+    Raises
+    ------
+    InvalidMeshError
+        For degenerate or repeated faces, an unwelded triangle soup, edges
+        shared by more than two faces, or vertices where separate fans of faces
+        meet.
+    """
+    check_proper_faces(faces)
+    check_welded(faces, n_vertices)
+    faces64 = np.asarray(faces, np.int64)
+    topology = edge_topology(faces64, n_vertices)
+    if topology.n_nonmanifold_edges:
+        raise InvalidMeshError(f"mesh has {topology.n_nonmanifold_edges} non-manifold edges (shared by more than "
+                               "two faces): repair it first (pverosion repair, or pverosion.repair)")
+    pinched = np.flatnonzero(vertex_fan_counts(faces64, n_vertices, topology=topology) > 1)
+    if len(pinched):
+        count = f"{len(pinched)} non-manifold {'vertex' if len(pinched) == 1 else 'vertices'}"
+        remedy = ("repair it first (pverosion repair, or pverosion.repair, splits each into one vertex per fan)"
+                  if topology.n_boundary_edges == 0 else "split each into one vertex per fan first (pverosion "
+                  "repair does so for a closed mesh only; this one has boundary edges)")
+        raise InvalidMeshError(f"mesh has {count} (where separate fans of faces meet at one point, as two "
+                               f"surfaces touching at a vertex; the first is vertex {pinched[0]}): {remedy}")
+    return topology
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -212,6 +260,7 @@ class GuardedMeshSolver(SolverLoop):
         repair: str = "retry",
     ) -> None:
         pts, fcs = as_triangle_mesh(points, faces)
+        evolvable_topology(fcs, len(pts))
         if not (np.isfinite(min_edge_ratio) and 0.0 <= min_edge_ratio < 1.0):
             raise ValueError(f"min_edge_ratio must be in [0, 1); got {min_edge_ratio!r}")
         if int(check_every) != check_every or check_every < 0:
