@@ -67,8 +67,8 @@ def check_coordinate_precision(points: np.ndarray, faces: np.ndarray) -> None:
     """Warn when the storage type of the points rounds them coarsely against the mesh's edges.
 
     Points stored as float32 (or another float type coarser than float64) far from the origin are rounded
-    in steps that may be a sizeable part of an edge, or longer (0.0625 at 1e6 units): the positions, and
-    the curvature and erosion computed from them, are wrong before any computation, whatever precision
+    in steps that may be a sizeable part of an edge, or longer (0.0625 at 1e6 units): the positions, and every
+    result computed from them (curvature, erosion, voxels, cuts), are off before any computation, whatever precision
     follows. The faces taken at a regular stride through the face list, 1024 to 2047 of them (all faces of
     a smaller mesh), give both figures compared: the step at the largest ``|coordinate|`` of their corners
     over the three axes (an error in any one coordinate moves the point; points no face uses do not count)
@@ -116,7 +116,8 @@ def check_coordinate_precision(points: np.ndarray, faces: np.ndarray) -> None:
     warnings.warn(
         f"the points are stored as {points.dtype}, whose values at the points' largest coordinate "
         f"({float(largest):.6g}) are {step:.3g} apart while the median edge is {edge:.3g} long (a rounding step "
-        f"above {COORDINATE_STEP_FRACTION:.0%} of the edge length puts the curvature and the erosion off): export "
+        f"above {COORDINATE_STEP_FRACTION:.0%} of the edge length moves the points by a visible part of an edge, and "
+        "every result made from them, curvature, erosion, voxels or cuts, with them): export "
         "the model again from its source with float64 points, or moved near the origin (and move the result "
         "back); moving the points after they were read does not undo the rounding", UserWarning, stacklevel=2)
 
