@@ -204,6 +204,23 @@ def test_curvature_erosion_is_local():
 
 
 @pytest.mark.parametrize("model", ["curvature", "sediment"])
+def test_a_soft_material_moves_no_vertex_more_than_the_step_bound(model):
+    """Erodibility 1e4 everywhere: every iteration's moves stay within e_avg / step_divisor and the guard finds
+    no vertex to freeze (the curvature model used to step far past the bound, and the guard froze the mesh)."""
+    from pverosion.kernels.mesh.geometry import average_edge_length
+
+    solver = _solver(model, min_edge_ratio=0.0, erodibility=np.full(_block().n_points, 1e4))
+    largest = 0.0
+    for _ in range(12):
+        before = solver.points.copy()
+        bound = average_edge_length(before, solver.faces) / solver.step_divisor
+        solver.run(1)
+        largest = max(largest, np.linalg.norm(solver.points - before, axis=1).max() / bound)
+    assert 0.5 < largest <= 1.0 + 1e-9
+    assert solver.frozen == 0
+
+
+@pytest.mark.parametrize("model", ["curvature", "sediment"])
 def test_a_mesh_finer_than_the_particles_erodes(model):
     # edges (~0.31) shorter than the particle radius: the vertices under a resting particle are about r from its
     # centre, farther than d_influence, but within it of the particle's surface

@@ -144,6 +144,29 @@ def test_erodibility_array_and_callable():
     assert np.array_equal(by_name.points, out.points)
 
 
+@pytest.mark.parametrize("erodibility", [1.0, 100.0, 1e6])
+def test_no_vertex_moves_more_than_the_step_bound_however_soft_the_material(erodibility):
+    """A step is at most e_avg / step_divisor whatever the erodibility: a soft material (or a Gradual falloff)
+    speeds up the vertices of lower curvature up to that bound. Erodibility 100 used to turn a sphere inside
+    out in three steps, unseen by the guard (the surface passed through itself whole)."""
+    from pverosion.kernels.mesh.geometry import average_edge_length, signed_volume
+
+    sphere = pv.Icosphere(radius=1.0, nsub=3)
+    points = np.asarray(sphere.points, dtype=np.float64)
+    solver = WeatheringSolver(points, sphere.regular_faces, erodibility=np.full(len(points), erodibility),
+                              min_edge_ratio=0.0, normalization="paper")
+    largest = []
+    for _ in range(5):
+        before = solver.points.copy()
+        bound = average_edge_length(before, solver.faces) / solver.step_divisor
+        solver.step()
+        largest.append(np.linalg.norm(solver.points - before, axis=1).max() / bound)
+    assert max(largest) <= 1.0 + 1e-9
+    assert min(largest) > 0.99  # the vertex of the largest curvature steps the whole bound
+    assert 0.8 * signed_volume(points, sphere.regular_faces) < signed_volume(solver.points, solver.faces)
+    assert solver.retries == 0
+
+
 def test_filter_time_steps_continue_from_the_cache():
     cube = load_cube(resolution=8)
     alg = Weathering(iterations=30)

@@ -7,7 +7,8 @@ models:
 
 ``"curvature"`` (Skorkovská et al. 2019, §3.4, eqs. 6–7)
     Vertices within ``d_influence`` (default: the average edge length e_avg)
-    of a colliding particle move by ``H_s^n * e_avg / x * f_distance``, with
+    of a colliding particle move by ``min(H_s^n * f_distance * erodibility, 1) * e_avg / x`` (never more than
+    ``e_avg / x``, however soft the material), with
     ``f_distance = (d_influence - d_part) / d_influence`` (d_part: distance to
     the closest colliding particle's surface, the sphere of radius r it
     collides as, so a fine mesh under large particles still erodes) and H_s
@@ -182,11 +183,13 @@ def nearest_particle_distance(points: np.ndarray, particles: np.ndarray, radius:
 
 
 @njit(cache=True, error_model="numpy", parallel=True)
-def _curvature_displace(points, normals, lap, h, h_norm, h_min, h_max, factor, power, length, displacement):
-    """Move every vertex with ``factor > 0`` (eqs. 6–7); returns the new points."""
+def _curvature_displace(points, normals, lap, h, h_norm, h_min, h_max, factor, scale, power, length, displacement):
+    """Move every vertex with ``factor > 0`` (eqs. 6–7) by ``min(h_norm^power * factor, 1) * length * scale``
+    (``factor``: distance falloff times erodibility; ``scale``: the guard's slowing down); returns the new
+    points."""
     out = points.copy()
     for i in prange(points.shape[0]):
-        if factor[i] <= 0.0:
+        if factor[i] <= 0.0 or scale[i] <= 0.0:
             continue
         w = 0.0
         if h[i] > 0.0 and h_max > 0.0:
@@ -203,7 +206,7 @@ def _curvature_displace(points, normals, lap, h, h_norm, h_min, h_max, factor, p
         vec = v3.add(v3.scale(inward, 1.0 - w), v3.scale(lvec, w))
         size = v3.norm(vec)
         vec = v3.scale(vec, 1.0 / size) if size > 0.0 else inward
-        step = v3.scale(vec, (h_norm[i] ** power) * length * factor[i])
+        step = v3.scale(vec, min((h_norm[i] ** power) * factor[i], 1.0) * length * scale[i])
         v3.store(out, i, v3.add(v3.row(points, i), step))
         for d in range(3):
             displacement[i, d] += step[d]
@@ -603,9 +606,8 @@ class HydraulicSolver(GuardedMeshSolver):
         f[self._fixed] = 0.0
         self.f_distance = f
         clock = self._lap("affected", clock)
-        factor = f * self._scale[self.ids]
-        if self._erodibility is not None:
-            factor *= erodibility_now(self._erodibility, self.points, self.ids)
+        scale = self._scale[self.ids]
+        factor = f if self._erodibility is None else f * erodibility_now(self._erodibility, self.points, self.ids)
         if self.model == "curvature":
             curv = self._curvature(self.points)
             h = curv.mean
@@ -614,9 +616,9 @@ class HydraulicSolver(GuardedMeshSolver):
             over = None if self.normalization == "paper" else self._interior
             stats = h if over is None or not over.any() else h[over]
             self.points = _curvature_displace(self.points, curv.normals, lap, h, normalize_shifted(h, where=over),
-                                              float(stats.min()), float(stats.max()), factor, self.power,
+                                              float(stats.min()), float(stats.max()), factor, scale, self.power,
                                               e_avg / self.step_divisor, self.displacement)
-            moved = factor > 0.0
+            moved = (factor > 0.0) & (scale > 0.0)
         else:
             moved = self._sediment_step(fluid, e_avg)
         if self.min_edge_ratio > 0.0:

@@ -36,14 +36,16 @@ def _ring_offset(points, ring_ptr, ring_idx, i):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _displace_range(points, direction, ring_ptr, ring_idx, unit, h_norm, h_raw, e_avg, power, length, factor, fixed,
-                    displacement, out, start, stop):
+def _displace_range(points, direction, ring_ptr, ring_idx, unit, h_norm, h_raw, e_avg, power, length, factor,
+                    erodibility, fixed, displacement, out, start, stop):
     """Steps of vertices ``start`` to ``stop`` (see :func:`displace`), written to ``out`` and added to
     ``displacement``; the direction is a row of ``direction`` or, when ``ring_ptr`` has entries, the uniform
     Laplacian from the one-ring CSR."""
     along_ring = ring_ptr.shape[0] > 0
+    uniform = erodibility.shape[0] == 0
     for i in range(start, stop):
-        if fixed[i] or h_norm[i] <= 0.0 or h_raw[i] * e_avg <= FLAT_CURVATURE or factor[i] == 0.0:
+        if (fixed[i] or h_norm[i] <= 0.0 or h_raw[i] * e_avg <= FLAT_CURVATURE or factor[i] == 0.0
+                or (not uniform and erodibility[i] == 0.0)):
             continue
         vec = _ring_offset(points, ring_ptr, ring_idx, i) if along_ring else v3.row(direction, i)
         if unit:
@@ -58,16 +60,22 @@ def _displace_range(points, direction, ring_ptr, ring_idx, unit, h_norm, h_raw, 
             vec = v3.scale(vec, 1.0 / size)
         # x ** 1.0 is x exactly: the default power skips the call of pow, the slowest part of the loop
         weight = h_norm[i] if power == 1.0 else h_norm[i] ** power
-        step = v3.scale(vec, weight * length * factor[i])
+        rate = weight if uniform else weight * erodibility[i]
+        step = v3.scale(vec, min(rate, 1.0) * length * factor[i])  # at most ``length`` times the factor
         v3.store(out, i, v3.add(v3.row(points, i), step))
         for d in range(3):
             displacement[i, d] += step[d]
 
 
 def displace(points, direction, unit, h_norm, h_raw, e_avg, power, length, factor, fixed, displacement, *,
-             ring=None):
+             ring=None, erodibility=None):
     """Points after one step along ``direction`` (made unit length when ``unit``).
 
+    A moving vertex ``i`` steps ``min(h_norm[i] ** power * erodibility[i], 1) * length * factor[i]``: never
+    more than ``length`` times its ``factor`` (the guard's slowing down), however large its erodibility
+    (a soft material, or a :class:`~pverosion.kernels.materials.field.Gradual` falloff, gives values above 1)
+    or its normalised curvature (above 1 next to the fixed boundary of an open mesh, whose vertices the
+    normalisation leaves out); ``erodibility`` None is 1 everywhere.
     Adds each vertex's step to ``displacement`` in place. With ``ring``, the
     one-ring CSR ``(ring_ptr, ring_idx)`` of
     :func:`~pverosion.kernels.mesh.topology.one_ring`, ``direction`` is None
@@ -80,7 +88,8 @@ def displace(points, direction, unit, h_norm, h_raw, e_avg, power, length, facto
     else:
         ring_ptr, ring_idx = ring
         direction = np.zeros((0, 3))
+    rate = np.zeros(0) if erodibility is None else np.ascontiguousarray(erodibility, dtype=np.float64)
     out = points.copy()
     for_ranges(_displace_range, points.shape[0], points, direction, ring_ptr, ring_idx, unit, h_norm, h_raw, e_avg,
-               power, length, factor, fixed, displacement, out)
+               power, length, factor, rate, fixed, displacement, out)
     return out

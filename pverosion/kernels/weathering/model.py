@@ -4,10 +4,10 @@ Each step computes the mean curvature H of every vertex, normalises it
 symmetrically (``<-H, H> -> <-1, 1>``, see ``normalization``), and moves each
 convex vertex (H > 0) by the length
 
-    d_i = H_i^n * e_avg / x * erodibility_i
+    d_i = min(H_i^n * erodibility_i, 1) * e_avg / x
 
 along the unit uniform-Laplacian direction (eqs. 3–5), or along the inward
-normal. Concave and flat vertices do not move; boundary vertices of open
+normal: never more than ``e_avg / x`` per step, however soft the material. Concave and flat vertices do not move; boundary vertices of open
 scans stay fixed. After every step, triangles with an edge shorter than
 ``min_edge_ratio * e_avg`` are removed by edge collapse
 (:mod:`pverosion.kernels.mesh.remesh`).
@@ -61,7 +61,9 @@ class WeatheringSolver(GuardedMeshSolver):
         Displacement direction: the unit uniform Laplacian (regularises the
         mesh) or the inward vertex normal (Figure 4 comparison).
     erodibility : array_like of shape (V,), callable, MaterialField or None
-        Non-negative multiplier of the displacement: one value per input
+        Non-negative multiplier of the displacement, which stays at most
+        ``e_avg / step_divisor`` per step (values above 1 speed up the vertices
+        of lower curvature up to that bound): one value per input
         vertex (carried along through edge collapses), a function of the
         current points (N, 3) returning (N,) values, or a material field
         (:mod:`pverosion.kernels.materials.field`, erodibility = 1 / hardness), the
@@ -163,15 +165,14 @@ class WeatheringSolver(GuardedMeshSolver):
         direction = None if self.direction == "laplacian" else -curv.normals
         e_avg = self._mean_edge_length()
         factor = self._scale[self.ids]
-        if self._erodibility is not None:
-            factor *= erodibility_now(self._erodibility, self.points, self.ids)
+        erodibility = None if self._erodibility is None else erodibility_now(self._erodibility, self.points, self.ids)
         if self.normalization == "paper":
             h_norm = normalize_symmetric(h)
         else:
             h_norm = normalize_symmetric(h, where=self._interior, always=True)
         self.points = displace(self.points, direction, self.direction == "laplacian", h_norm, h, e_avg, self.power,
                                e_avg / self.step_divisor, factor, self._fixed, self.displacement,
-                               ring=self._ring if direction is None else None)
+                               ring=self._ring if direction is None else None, erodibility=erodibility)
         clock = self._lap("displacement", clock)
         if self.min_edge_ratio > 0.0:
             self._improve(self.min_edge_ratio * e_avg)
