@@ -7,6 +7,7 @@ import os
 import re
 import shutil
 import tempfile
+import warnings
 from pathlib import Path
 from xml.etree import ElementTree
 from xml.sax.saxutils import quoteattr
@@ -20,6 +21,7 @@ from pverosion.kernels.files import atomic_path, file_mode
 __all__ = [
     "EXTENSIONS",
     "OUTPUT_FORMATS",
+    "SURFACE_ONLY",
     "TimeSeriesWriter",
     "atomic_path",
     "blocks_folder",
@@ -43,7 +45,12 @@ EXTENSIONS = {
 
 OUTPUT_FORMATS = {"vtkPolyData": (".vtp", ".vtk", ".ply", ".stl", ".obj"), "vtkImageData": (".vti", ".vtk"),
                   "vtkMultiBlockDataSet": (".vtm",)}
-"""File suffixes that hold each output data type without loss (the first is the recommended one)."""
+"""File suffixes each output data type can be written as (the first is the recommended one); those in
+:data:`SURFACE_ONLY` lose the arrays."""
+
+SURFACE_ONLY = (".ply", ".stl", ".obj")
+"""Surface suffixes that keep the points and faces only, not the point, cell and field arrays (the curvature,
+displacement, statistics); :func:`write_atomic` warns when it drops arrays."""
 
 
 def check_output_path(path: str | os.PathLike, data_type: str, *, what: str = "output") -> Path:
@@ -380,6 +387,13 @@ def write_atomic(dataset: pv.DataObject, path: str | os.PathLike) -> Path:
     if isinstance(dataset, pv.MultiBlock) and path.suffix.lower() == ".vtm":
         _write_multiblock(dataset, path)
         return path
+    if path.suffix.lower() in SURFACE_ONLY:
+        arrays = [*dataset.point_data, *dataset.cell_data, *dataset.field_data]
+        if arrays:
+            listed = ", ".join(arrays[:6]) + (f" and {len(arrays) - 6} more" if len(arrays) > 6 else "")
+            warnings.warn(f"{path.name}: a {path.suffix.lower()} file keeps the surface only; its {len(arrays)} "
+                          f"arrays ({listed}) are not written: write .vtp (or .vtk) to keep them", UserWarning,
+                          stacklevel=2)
     with atomic_path(path) as tmp:
         dataset.save(tmp)
     return path

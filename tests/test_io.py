@@ -1,3 +1,5 @@
+import re
+
 import numpy as np
 import pytest
 import pyvista as pv
@@ -38,6 +40,28 @@ def test_atomic_write_keeps_old_file_on_failure(tmp_path):
         write_atomic(object(), target)
     assert target.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["mesh.vtp"]
+
+
+@pytest.mark.parametrize("ext", [".stl", ".ply", ".obj"])
+def test_a_surface_only_format_warns_about_the_arrays_it_drops_on_the_command_line_too(tmp_path, capsys, ext):
+    """STL, PLY and OBJ keep the surface, not the curvature arrays: the result is written (exit 0) and the
+    warning names the arrays lost and .vtp; a .vtp result keeps them all without a word."""
+    import warnings
+
+    from pverosion.cli import main
+
+    sphere = pv.Icosphere(nsub=2)
+    sphere.save(tmp_path / "sphere.vtp")
+    assert main(["curvature", str(tmp_path / "sphere.vtp"), "-o", str(tmp_path / f"out{ext}")]) == 0
+    err = capsys.readouterr().err
+    assert re.search(rf"out{re.escape(ext)}: a {re.escape(ext)} file keeps the surface only; its \d+ arrays "
+                     r"\(mean_curvature, .* and \d+ more\) are not written: write \.vtp", err), err
+    assert pv.read(tmp_path / f"out{ext}").n_points == sphere.n_points
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["curvature", str(tmp_path / "sphere.vtp"), "-o", str(tmp_path / "out.vtp")]) == 0
+        write_atomic(pv.Icosphere(nsub=1), tmp_path / f"plain{ext}")  # no arrays: nothing lost
+    assert "mean_curvature" in pv.read(tmp_path / "out.vtp").point_data
 
 
 def test_read_mesh_formats_and_errors(tmp_path):
