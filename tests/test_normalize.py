@@ -47,3 +47,20 @@ def test_statistics_over_a_mask_clip_the_rest():
     np.testing.assert_array_equal(normalize_shifted(h, where=nothing), normalize_shifted(h))
     with pytest.raises(ValueError, match="where must have the shape"):
         normalize_shifted(h, where=interior[:3])
+
+
+@pytest.mark.parametrize("method", ["symmetric", "shifted"])
+def test_the_curvature_stage_normalisations_are_the_same_in_any_units(method):
+    """A unit sphere and one of radius 100 (H about 1 and 0.01): the same normalised array to rounding; the
+    symmetric one used the paper's rule, which leaves values within <-1, 1> alone."""
+    import pyvista as pv
+
+    import pverosion
+
+    sphere = pv.Icosphere(radius=1.0, nsub=3)
+    big = sphere.scale(100.0, inplace=False)
+    small_out = pverosion.curvature(sphere, normalization=method)["mean_curvature_normalized"]
+    big_out = pverosion.curvature(big, normalization=method)["mean_curvature_normalized"]
+    np.testing.assert_allclose(big_out, small_out, rtol=1e-5, atol=1e-6)
+    assert np.abs(small_out).max() == pytest.approx(1.0)
+

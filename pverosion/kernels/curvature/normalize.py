@@ -91,7 +91,10 @@ def normalize_shifted(values, *, where=None) -> np.ndarray:
 
 
 def normalize_curvature(values, method: str) -> np.ndarray:
-    """Apply the normalisation named ``method``.
+    """Apply the normalisation named ``method``: the ``mean_curvature_normalized`` array of the curvature stage.
+
+    ``"symmetric"`` divides by ``max |H|`` always (:func:`normalize_symmetric` with ``always=True``) and
+    ``"shifted"`` maps the range onto ``<0, 1>``, so both are the same in any units.
 
     Parameters
     ----------
@@ -103,7 +106,7 @@ def normalize_curvature(values, method: str) -> np.ndarray:
     numpy.ndarray, shape (V,)
     """
     if method == "symmetric":
-        return normalize_symmetric(values)
+        return normalize_symmetric(values, always=True)
     if method == "shifted":
         return normalize_shifted(values)
     if method == "none":

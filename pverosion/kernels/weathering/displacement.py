@@ -73,9 +73,8 @@ def displace(points, direction, unit, h_norm, h_raw, e_avg, power, length, facto
 
     A moving vertex ``i`` steps ``min(h_norm[i] ** power * erodibility[i], 1) * length * factor[i]``: never
     more than ``length`` times its ``factor`` (the guard's slowing down), however large its erodibility
-    (a soft material, or a :class:`~pverosion.kernels.materials.field.Gradual` falloff, gives values above 1)
-    or its normalised curvature (above 1 next to the fixed boundary of an open mesh, whose vertices the
-    normalisation leaves out); ``erodibility`` None is 1 everywhere.
+    (a soft material, or a :class:`~pverosion.kernels.materials.field.Gradual` falloff, gives values above
+    1); ``erodibility`` None is 1 everywhere.
     Adds each vertex's step to ``displacement`` in place. With ``ring``, the
     one-ring CSR ``(ring_ptr, ring_idx)`` of
     :func:`~pverosion.kernels.mesh.topology.one_ring`, ``direction`` is None
