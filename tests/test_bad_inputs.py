@@ -254,6 +254,12 @@ CASES = {
                          lambda d: pverosion.materials_from_volume(pv.read(d / "ramp.vti"), [0.5, 0.5])),
     "NaN hardness": (["materials", "ramp.vti", "-o", "out.vti", "--thresholds", "0.5", "--hardness", "1,nan"],
                      r"--hardness must be finite", None),
+    "more hardness values than materials": (["materials", "ramp.vti", "-o", "out.vti", "--thresholds", "0.5",
+                                             "--hardness", "1,2,3"],
+                                            r"hardness needs one value per material: 1 thresholds make 2 materials; "
+                                            r"got 3 values",
+                                            lambda d: pverosion.materials_from_volume(pv.read(d / "ramp.vti"), [0.5],
+                                                                                      hardness=[1.0, 2.0, 3.0])),
     "image result to .vtp": (["materials", "ramp.vti", "-o", "out.vtp", "--thresholds", "0.5"],
                              r"-o out.vtp: an ImageData result is written as .vti", None),
     "missing tree file": (["sample-materials", "grid.vti", "-o", "out.vti", "--tree-file", "missing.json"],

@@ -491,6 +491,9 @@ def test_bad_input_is_named():
         BSPMaterials.split(Plane(), 0, 3, [1.0, 2.0])
     with pytest.raises(ValueError, match="strictly inside the value range"):
         bsp_from_volume(np.arange(27.0).reshape(3, 3, 3), [100.0])
+    for thresholds in ([np.nan], [5.0, np.nan]):  # a lone NaN made a tree of one material; a second was dropped
+        with pytest.raises(ValueError, match=r"thresholds must be finite numbers; got \[.*nan"):
+            bsp_from_volume(np.arange(27.0).reshape(3, 3, 3), thresholds)
     with pytest.raises(ValueError, match="values has 1 NaN or infinite samples"):
         bsp_from_volume(np.where(np.arange(27) == 4, np.nan, np.arange(27.0)).reshape(3, 3, 3), [10.0])
     with pytest.raises(ValueError, match="method must be one of"):

@@ -362,8 +362,13 @@ def bsp_from_volume(
     if bad:
         raise ValueError(f"values has {bad} NaN or infinite samples; their material is undefined")
     levels = np.sort(np.asarray(thresholds, dtype=np.float64).ravel())
+    if not np.isfinite(levels).all():
+        raise ValueError(f"thresholds must be finite numbers; got {np.asarray(thresholds).ravel().tolist()}")
     if levels.size == 0 or len(np.unique(levels)) != levels.size:
         raise ValueError("thresholds must be one or more distinct numbers")
+    if hardness is not None and np.size(hardness) != levels.size + 1:
+        raise ValueError(f"hardness needs one value per material: {levels.size} thresholds make {levels.size + 1} "
+                         f"materials; got {np.size(hardness)} values")
     lo, hi = float(vol.min()), float(vol.max())
     if levels[0] <= lo or levels[-1] >= hi:
         raise ValueError(f"thresholds must lie strictly inside the value range ({lo}, {hi}); got {levels.tolist()}")
