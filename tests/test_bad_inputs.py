@@ -102,6 +102,9 @@ def inputs(tmp_path) -> Path:
     flat_face = np.array(_sphere().points, dtype=np.float64)
     flat_face[faces[7, 2]] = 0.5 * (flat_face[faces[7, 0]] + flat_face[faces[7, 1]])  # face 7 without area
     pv.PolyData.from_regular_faces(flat_face, faces).save(tmp_path / "flat_face.vtp")
+    tangled = np.array(_sphere().points, dtype=np.float64)
+    tangled += np.random.default_rng(2).normal(scale=0.15, size=tangled.shape)  # about an edge: faces cross
+    pv.PolyData.from_regular_faces(tangled, faces).save(tmp_path / "tangled.vtp")
     soup = _sphere().points[faces].reshape(-1, 3)  # every triangle with its own three points, as an STL file holds them
     pv.PolyData.from_regular_faces(soup, np.arange(len(soup)).reshape(-1, 3)).save(tmp_path / "soup.vtp")
     (tmp_path / "other.json").write_text('{"format": "something else"}')
@@ -137,6 +140,13 @@ CASES = {
     "face of zero area, freeze-thaw": (["freeze-thaw", "flat_face.vtp", "-o", "out.vtm", "--cells", "5"],
                                        r"faces of zero area",
                                        lambda d: pverosion.freeze_thaw(pv.read(d / "flat_face.vtp"), cells=5)),
+    "self-intersecting mesh, shards": (["shard-graph", "tangled.vtp", "-o", "out.vtm", "--cells", "5"],
+                                       r"mesh intersects itself: \d+ faces meet faces they share no vertex with .*"
+                                       r"pverosion repair",
+                                       lambda d: pverosion.shard_graph(pv.read(d / "tangled.vtp"), cells=5)),
+    "self-intersecting mesh, freeze-thaw": (["freeze-thaw", "tangled.vtp", "-o", "out.vtm", "--cells", "5"],
+                                            r"mesh intersects itself",
+                                            lambda d: pverosion.freeze_thaw(pv.read(d / "tangled.vtp"), cells=5)),
     "voxels that are not cubes": (["voxel", "flat.vti", "-o", "out.vtm"],
                                   r"needs cubic voxels; the grid's spacing is \(2\.0, 1\.0, 1\.0\)$",
                                   lambda d: pverosion.voxel_erosion(pv.read(d / "flat.vti"))),

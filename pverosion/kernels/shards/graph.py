@@ -45,6 +45,7 @@ from scipy.sparse.csgraph import connected_components
 
 from pverosion.kernels._jit import njit
 from pverosion.kernels._search import lower_bound
+from pverosion.kernels.exact.intersection import intersecting_faces
 from pverosion.kernels.mesh.topology import halfedge_twins
 from pverosion.kernels.shards.voronoi import MAX_FACE_VERTICES, MAX_FACES, cell_polygons, seed_grid
 from pverosion.kernels.spatial.grid import box_items, grid_over
@@ -595,7 +596,9 @@ def build_shards(seeds: np.ndarray, points: np.ndarray, faces: np.ndarray, *, pr
         empty, open or not made of triangles.
     InvalidMeshError
         A face of zero area (its corners on a line): it bounds no piece of any
-        cell, so the shards would leave a hole at it.
+        cell, so the shards would leave a hole at it. A self-intersecting
+        mesh (faces touching only where distinct vertices coincide do not
+        count): its inside is undefined where it crosses itself.
     """
     seeds = np.asarray(seeds)
     if seeds.ndim != 2 or seeds.shape[1] != 3 or len(seeds) == 0:
@@ -623,6 +626,12 @@ def build_shards(seeds: np.ndarray, points: np.ndarray, faces: np.ndarray, *, pr
         raise InvalidMeshError(f"mesh has {len(flat)} faces of zero area, whose corners lie on a line (first faces: "
                                f"{flat[:5].tolist()}): the shards would leave a hole at each; pverosion repair "
                                "flips or collapses them")
+    crossing = np.flatnonzero(intersecting_faces(points, faces, coincident="shared"))
+    if len(crossing):
+        raise InvalidMeshError(f"mesh intersects itself: {len(crossing)} faces meet faces they share no vertex with "
+                               f"(first faces: {crossing[:5].tolist()}), so the solid the shards fill is undefined "
+                               "there; pverosion repair (or pverosion.repair) makes it a surface without "
+                               "intersections")
     start, order, dims, size = seed_grid(seeds, lo, hi)
     bound_n, bound_d = _bounding_planes(points, margin=margin)
     tri_adj = np.where(partner >= 0, partner // 3, -1).reshape(-1, 3)
