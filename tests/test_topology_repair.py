@@ -87,3 +87,25 @@ def test_hydraulic_repair_hands_the_sediment_of_vertices_cut_away_to_the_nearest
     assert solver.repairs == 1 and _closed(solver.faces)
     assert len(solver.pending) == len(solver.points) < len(points)
     assert solver.pending.sum() == pytest.approx(owed, rel=1e-12, abs=1e-15)
+
+
+def test_a_topology_repair_that_leaves_no_surface_rolls_back_as_retry(monkeypatch):
+    """Steps that turn the whole surface inside out leave nothing of winding number >= 1: the solver rolls back
+    and shortens the steps, as with repair="retry", instead of failing on an empty mesh ("mesh is empty")."""
+    import dataclasses
+
+    from pverosion.kernels.repair import mesh_repair
+
+    real = mesh_repair.repair_intersections
+
+    def nothing_left(points, faces):
+        result = real(points, faces)
+        return dataclasses.replace(result, points=result.points[:0], faces=result.faces[:0],
+                                   source_face=result.source_face[:0], source_vertex=result.source_vertex[:0])
+
+    monkeypatch.setattr(mesh_repair, "repair_intersections", nothing_left)
+    points, faces = _slab()
+    solver = Dent(points, faces, depth=0.07, repair="topology")
+    solver.run(3)
+    assert solver.retries >= 1 and solver.repairs == 0
+    assert len(solver.points) == len(points) and not intersecting_faces(solver.points, solver.faces).any()

@@ -535,10 +535,12 @@ class GuardedMeshSolver(SolverLoop):
 
     def _repair_topology(self) -> None:
         """Cut the mesh along its intersection curves and keep the boundary of winding number >= 1."""
-        from pverosion.kernels.repair.mesh_repair import repair_intersections
+        from pverosion.kernels.repair.mesh_repair import RepairError, repair_intersections
 
         clock = time.perf_counter()
         result = repair_intersections(self.points, self.faces)
+        if len(result.faces) == 0:  # the steps turned the whole surface inside out: nothing is inside it
+            raise RepairError("the topology repair left no surface")
         source = result.source_vertex
         # a new vertex (on a curve) takes the state of the first corner of the face it was cut from
         donor = np.full(len(result.points), -1, np.int64)
