@@ -105,6 +105,7 @@ def inputs(tmp_path) -> Path:
     tangled = np.array(_sphere().points, dtype=np.float64)
     tangled += np.random.default_rng(2).normal(scale=0.15, size=tangled.shape)  # about an edge: faces cross
     pv.PolyData.from_regular_faces(tangled, faces).save(tmp_path / "tangled.vtp")
+    pv.Plane(i_resolution=4, j_resolution=4).triangulate().save(tmp_path / "sheet.vtp")
     soup = _sphere().points[faces].reshape(-1, 3)  # every triangle with its own three points, as an STL file holds them
     pv.PolyData.from_regular_faces(soup, np.arange(len(soup)).reshape(-1, 3)).save(tmp_path / "soup.vtp")
     (tmp_path / "other.json").write_text('{"format": "something else"}')
@@ -147,6 +148,12 @@ CASES = {
     "self-intersecting mesh, freeze-thaw": (["freeze-thaw", "tangled.vtp", "-o", "out.vtm", "--cells", "5"],
                                             r"mesh intersects itself",
                                             lambda d: pverosion.freeze_thaw(pv.read(d / "tangled.vtp"), cells=5)),
+    "open sheet with close_holes": (["hydraulic", "sheet.vtp", "-o", "out.vtm", "--emitter", EMITTER,
+                                     "--close-holes"],
+                                    r"closing the input's \d+ boundary edges did not give a closed surface to erode "
+                                    r"\(.*\): an open sheet has no inside",
+                                    lambda d: pverosion.hydraulic_erosion(pv.read(d / "sheet.vtp"), emitter=EMITTER,
+                                                                          close_holes=True)),
     "voxels that are not cubes": (["voxel", "flat.vti", "-o", "out.vtm"],
                                   r"needs cubic voxels; the grid's spacing is \(2\.0, 1\.0, 1\.0\)$",
                                   lambda d: pverosion.voxel_erosion(pv.read(d / "flat.vti"))),

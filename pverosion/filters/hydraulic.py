@@ -29,7 +29,7 @@ from pverosion.kernels.materials.erodibility import check_erodibility, renumbere
 from pverosion.kernels.mesh.geometry import average_edge_length
 from pverosion.kernels.mesh.locality import CanonicalMesh, canonical_mesh
 from pverosion.kernels.mesh.orientation import ORIENTATIONS
-from pverosion.kernels.solver.mesh_evolution import REPAIR_MODES
+from pverosion.kernels.solver.mesh_evolution import REPAIR_MODES, evolvable_topology
 from pverosion.kernels.validation import InvalidMeshError
 from pverosion.limits import check_memory, check_work
 
@@ -258,6 +258,12 @@ class HydraulicErosion(MeshSolverFilter):
             from pverosion.meshing import fill_holes  # loads matplotlib: only when a hole is filled
 
             points, faces = fill_holes(points, faces)
+            try:
+                evolvable_topology(faces, len(points))
+            except InvalidMeshError as error:  # the patches repeat the faces of a sheet: a sheet has no inside
+                raise InvalidMeshError(f"closing the input's {holes} boundary edges did not give a closed surface to "
+                                       f"erode ({error}): an open sheet has no inside to close; give a closed "
+                                       "mesh, or one whose holes are openings in a closed shape") from None
         elif holes:
             raise InvalidMeshError(f"hydraulic erosion needs a closed mesh; the input has {holes} boundary edges "
                                    "(holes): fill them first, or set close_holes=True to close them")
