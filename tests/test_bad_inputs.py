@@ -17,6 +17,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -662,6 +663,17 @@ def test_cli_messages_use_cli_syntax():
 def test_a_run_whose_water_drains_at_once_warns():
     with pytest.warns(UserWarning, match=r"all \d+ emitted particles were drained or left the domain .* at once"):
         pverosion.hydraulic_erosion(_sphere(), emitter=EMITTER, drain="box:-1,-1,1.5,1,1,2.5", iterations=3)
+
+
+def test_a_run_whose_water_never_reaches_the_mesh_warns_and_one_that_erodes_does_not():
+    with pytest.warns(UserWarning, match=r"the water eroded nothing in 2 iterations \(\d+ particles emitted\): none "
+                                         r"reached the mesh"):
+        out = pverosion.hydraulic_erosion(_sphere(), emitter="0,0,5,0,0,-1,0.3,200", iterations=2)
+    assert not out["mesh"]["displacement"].any()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = pverosion.hydraulic_erosion(_sphere(), emitter="0,0,0.9,0,0,-1,0.3,400", iterations=8)
+    assert out["mesh"]["displacement"].any()
 
 
 def test_a_grid_too_large_for_memory_is_refused(monkeypatch):

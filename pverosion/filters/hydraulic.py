@@ -138,7 +138,7 @@ def _check_resources(fluid: FluidParameters, emitters: list[Emitter], n_points: 
 
 
 def _warn_without_water(solver: HydraulicSolver) -> None:
-    """Warn when a run emitted no particle, or lost every particle it emitted, so nothing could erode."""
+    """Warn when a run emitted no particle, lost every particle it emitted, or moved no vertex: nothing eroded."""
     fluid = solver.fluid
     if fluid.steps == 0:
         return
@@ -152,6 +152,11 @@ def _warn_without_water(solver: HydraulicSolver) -> None:
         warnings.warn(f"hydraulic erosion: all {fluid.emitted} emitted particles were drained or left the domain "
                       f"{fluid.domain[0].tolist()}..{fluid.domain[1].tolist()} at once; place the emitters inside "
                       "the domain, above the mesh, or widen the domain", UserWarning, stacklevel=2)
+    elif not solver.displacement.any():
+        warnings.warn(f"hydraulic erosion: the water eroded nothing in {fluid.steps} iterations ({fluid.emitted} "
+                      "particles emitted): none reached the mesh, or, in the sediment model, their shear stress "
+                      "stayed below critical_stress; aim the emitters at the mesh from outside it, run more "
+                      "iterations, or lower critical_stress", UserWarning, stacklevel=2)
 
 
 def particles_polydata(solver: HydraulicSolver) -> pv.PolyData:
