@@ -676,6 +676,17 @@ def test_a_run_whose_water_never_reaches_the_mesh_warns_and_one_that_erodes_does
     assert out["mesh"]["displacement"].any()
 
 
+@pytest.mark.parametrize("rate", ["1e5", "1e12"])
+def test_a_rate_without_a_speed_that_sends_the_water_out_of_the_domain_is_refused(rate):
+    """Without a speed the rate sets it: 1e5 particles/s from a disc of 9 lattice points leave at about 2000 per
+    second, far past the domain in one step; the run drained every particle at once and blamed the emitter's
+    place (1e12 ran for minutes first)."""
+    shown = re.escape(f"{float(rate):g}")
+    with pytest.raises(ValueError, match=rf"emitter 0: rate {shown} particles/s without a speed sends the particles "
+                                         r"off at .* farther than the domain is wide"):
+        pverosion.hydraulic_erosion(_sphere(), emitter=f"0,0,0.9,0,0,-1,0.3,{rate}", iterations=3)
+
+
 def test_a_grid_too_large_for_memory_is_refused(monkeypatch):
     monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "100K")
     with pytest.raises(ResourceLimitError, match=r"input grid: the solver of 1200 voxels .* use coarser voxels"):

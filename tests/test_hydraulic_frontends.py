@@ -148,7 +148,9 @@ def test_the_default_particle_radius_does_not_depend_on_the_order_of_vertices_an
         order = rng.permutation(len(points))
         shuffled = np.argsort(order)[faces][rng.permutation(len(faces))]
         mesh = pv.PolyData.from_regular_faces(points[order], np.roll(shuffled, seed % 3, axis=1))
-        radii.add(HydraulicErosion(iterations=0, emitter=EMITTER, drain=DRAIN)._new_solver(mesh).fluid.params.radius)
+        # particles of the default radius (about 0.2): a disc of one lattice point, for a rate that keeps them in
+        emitter = "0,0,1.2,0.3,0,-1,0.3,20"
+        radii.add(HydraulicErosion(iterations=0, emitter=emitter, drain=DRAIN)._new_solver(mesh).fluid.params.radius)
     assert len(radii) == 1
 
 

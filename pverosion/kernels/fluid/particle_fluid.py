@@ -342,7 +342,17 @@ class ParticleFluid:
         spacing = self.params.spacing
         offsets = emitter.lattice(spacing)
         if emitter.speed is None:
-            return offsets, spacing * emitter.rate / len(offsets), 1.0
+            speed = spacing * emitter.rate / len(offsets)
+            lo, hi = self.domain
+            width = float(np.max(hi - lo))
+            if speed * self.dt > width:  # each step's layers would reach past the domain: drained at once
+                raise ValueError(
+                    f"emitter {k}: rate {emitter.rate:g} particles/s without a speed sends the particles off at "
+                    f"{speed:.3g} per second (the rate over the disc's {len(offsets)} lattice points), "
+                    f"{speed * self.dt:.3g} per time step, farther than the domain is wide ({width:.3g}); lower the "
+                    "rate, or give a speed and a radius that fit it"
+                )
+            return offsets, speed, 1.0
         top = len(offsets) * emitter.speed / spacing
         if emitter.rate > top * (1.0 + 1e-12):
             raise ValueError(
