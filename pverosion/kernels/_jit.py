@@ -4,10 +4,11 @@
 included: one that Python calls, and a C-callable one (the "cfunc wrapper")
 used only when a compiled function is passed as a first-class function
 value, which no kernel does. Leaving out the second saves LLVM work on every
-function without changing what runs: 7 % of the compile time of a Boolean
-operation's kernels, 2 % of weathering's, on a fresh install
-(``benchmarks/bench_cold_start.py --per-kernel``). The Python wrapper stays:
-a function compiled without it crashes the process when Python calls it.
+function without changing what runs: 0.1 to 1.9 of about 22 CPU seconds of a
+Boolean union's compilation on a fresh install, in five pairs of
+``benchmarks/bench_cold_start.py --per-kernel`` runs. The Python wrapper
+stays: a function compiled without it crashes the process when Python calls
+it.
 """
 
 from __future__ import annotations
