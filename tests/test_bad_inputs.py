@@ -687,6 +687,18 @@ def test_a_rate_without_a_speed_that_sends_the_water_out_of_the_domain_is_refuse
         pverosion.hydraulic_erosion(_sphere(), emitter=f"0,0,0.9,0,0,-1,0.3,{rate}", iterations=3)
 
 
+def test_a_voxel_run_that_ends_without_material_warns_that_its_surface_is_empty():
+    empty = _grid()
+    empty.point_data["material_amount"] = np.zeros(empty.n_points)
+    with pytest.warns(UserWarning, match=r"after 1 iterations no voxel's material_amount reaches 0.5.*the surface "
+                                         r"is empty"):
+        out = pverosion.voxel_erosion(empty, iterations=1)
+    assert out["surface"].n_points == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert pverosion.voxel_erosion(_grid(), iterations=1)["surface"].n_points > 0
+
+
 def test_a_grid_too_large_for_memory_is_refused(monkeypatch):
     monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "100K")
     with pytest.raises(ResourceLimitError, match=r"input grid: the solver of 1200 voxels .* use coarser voxels"):

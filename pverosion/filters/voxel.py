@@ -15,6 +15,7 @@ The filter adds ``voxel_class`` (0 EMPTY, 1 FULL, 2 MAT), ``dissolved``,
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pyvista as pv
@@ -461,6 +462,10 @@ class VoxelErosion(TimeSteppedFilter):
     def _fill(self, solver: VoxelErosionSolver, inp, out) -> None:
         state = self._state(inp, solver)
         surface = extract_material_surface(state, method=self.get_option("extraction"))
+        if surface.n_points == 0 and self.requested_step() == self.get_option("iterations"):
+            warnings.warn(f"voxel erosion: after {self.requested_step()} iterations no voxel's material_amount "
+                          "reaches 0.5, the level of the surface, so the surface is empty: the grid had no "
+                          "material, or all of it dissolved", UserWarning, stacklevel=2)
         set_multiblock(out, pv.MultiBlock({"state": state, "surface": surface}))
 
     def _state(self, inp, solver: VoxelErosionSolver) -> pv.ImageData:
