@@ -1,6 +1,6 @@
 import numpy as np
 import pytest
-from conftest import icosphere
+from conftest import icosphere, touching_spheres
 
 from pverosion.examples import load_torus
 from pverosion.kernels.exact.intersection import (
@@ -61,6 +61,21 @@ def test_faces_touching_where_distinct_vertices_coincide_meet_apart_and_are_adja
     assert intersecting_faces(points, faces, query=only_above).tolist() == [True, True, False]
     with pytest.raises(ValueError, match="coincident must be"):
         intersecting_faces(points, faces, coincident="joined")
+
+
+def test_a_repaired_pinch_touches_only_at_coincident_vertices():
+    """Two spheres sharing a vertex: the repair splits it into two vertices at one position, where the faces of
+    both still touch. That is what "shared" allows and "apart" counts."""
+    import pverosion
+
+    pinched, touch = touching_spheres()
+    repaired = pverosion.repair(pinched)
+    points, faces = np.asarray(repaired.points, dtype=float), repaired.regular_faces
+    assert not intersecting_faces(points, faces, coincident="shared").any()
+    touching = intersecting_faces(points, faces)
+    at = np.flatnonzero((points == np.asarray(pinched.points[touch], dtype=float)).all(axis=1))
+    assert len(at) == 2  # the split vertex
+    assert touching.any() and np.isin(faces[touching], at).any(axis=1).all()  # every contact is at that point
 
 
 def test_clean_closed_meshes_have_no_intersections():
