@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 
 __all__ = ["COORDINATE_STEP_FRACTION", "InvalidMeshError", "as_faces", "as_points", "as_triangle_mesh",
-           "check_coordinate_precision", "check_proper_faces", "check_welded"]
+           "check_coordinate_precision", "check_proper_faces", "check_welded", "unique_rows"]
 
 COORDINATE_STEP_FRACTION = 0.01
 """Largest rounding step of stored coordinates, as a fraction of the median edge length, taken without a warning.
@@ -209,14 +209,10 @@ def check_proper_faces(faces: np.ndarray) -> None:
     if len(repeated):
         raise InvalidMeshError(f"mesh has {len(repeated)} degenerate faces that use a vertex twice (first faces: "
                                f"{repeated[:5].tolist()}): remove them first (mesh.clean() drops them)")
-    ordered = np.sort(faces, axis=1).astype(np.int64, copy=False)
-    if len(ordered) and ordered[:, 0].min() >= 0 and ordered[:, 2].max() < 1 << 21:
-        keys = (ordered[:, 0] << 42) | (ordered[:, 1] << 21) | ordered[:, 2]  # one integer per set of vertices
-    else:
-        keys = np.unique(ordered, axis=0, return_inverse=True)[1].ravel()
-    order = np.argsort(keys, kind="stable")
-    copies = np.sort(order[1:][keys[order[1:]] == keys[order[:-1]]])  # each face after the first with its vertices
-    if len(copies):
+    distinct, keys = unique_rows(np.sort(faces, axis=1))  # one integer per set of vertices
+    if len(distinct) < len(faces):
+        order = np.argsort(keys, kind="stable")
+        copies = np.sort(order[1:][keys[order[1:]] == keys[order[:-1]]])  # each face after the first with its vertices
         raise InvalidMeshError(f"mesh has {len(copies)} faces that repeat the vertices of another face (first "
                                f"copies: {copies[:5].tolist()}): remove the duplicates first")
 
@@ -247,3 +243,23 @@ def check_welded(faces: np.ndarray, n_points: int) -> None:
     if len(faces) > 1 and n_points >= faces.size and len(np.unique(faces)) == faces.size:
         raise InvalidMeshError(f"no two of the mesh's {len(faces)} triangles share a vertex (an unwelded triangle "
                                "soup, as in an STL file): merge the coincident points first (mesh.clean())")
+
+
+def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sorted unique rows of an (N, K) integer array and the index of every input row among them (N,)."""
+    if len(rows) == 0:
+        return rows.copy(), np.zeros(0, np.int64)
+    lo = rows.min(axis=0)
+    span = rows.max(axis=0) - lo + 1
+    if np.prod(span.astype(np.float64)) < 2.0**62:  # one sort of packed keys instead of a sort per column
+        key = np.zeros(len(rows), np.int64)
+        for k in range(rows.shape[1]):
+            key = key * span[k] + (rows[:, k] - lo[k])
+        _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+        return rows[first], inverse.reshape(-1)
+    order = np.lexsort(rows.T[::-1])
+    ordered = rows[order]
+    new = np.r_[True, np.any(ordered[1:] != ordered[:-1], axis=1)]
+    inverse = np.empty(len(rows), np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    return ordered[new], inverse

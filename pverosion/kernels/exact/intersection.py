@@ -24,7 +24,8 @@ from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges
 from pverosion.kernels.tolerances import COPLANAR
 from pverosion.kernels.validation import as_triangle_mesh
 
-__all__ = ["candidate_pairs", "intersecting_faces", "intersecting_pairs", "spatial_order", "triangles_intersect"]
+__all__ = ["candidate_pairs", "canonical_vertices", "intersecting_faces", "intersecting_pairs", "spatial_order",
+           "triangles_intersect"]
 
 
 
@@ -692,16 +693,38 @@ def spatial_order(points, faces) -> np.ndarray:
     return np.argsort(_face_boxes(pts, fcs, keys=True)[3], kind="stable")
 
 
-def _coincident_corners_joined(points: np.ndarray, faces: np.ndarray, among: np.ndarray) -> np.ndarray | None:
-    """``faces`` (F, 3) with every corner of the faces ``among`` (F,) that has the position of another such corner
-    replaced by the lowest index of that position; None when no two of those corners share a position."""
-    corners = np.unique(faces[among])
-    _, first, inverse = np.unique(points[corners], axis=0, return_index=True, return_inverse=True)
-    if len(first) == len(corners):
-        return None
-    joined = np.arange(len(points))
-    joined[corners] = corners[first][inverse.ravel()]  # np.unique's first index of a row is its lowest
-    return joined[faces]
+@njit(cache=True)
+def _first_of_equal_rows(bits: np.ndarray) -> np.ndarray:
+    """The lowest index of the rows equal to every row of ``bits`` (V, 3) int64, by an open-addressing hash table
+    (one pass in index order, so the first row of every position is met first)."""
+    n = bits.shape[0]
+    size = np.int64(16)
+    while size < 2 * n:
+        size *= 2
+    table = np.full(size, -1, np.int64)
+    out = np.empty(n, np.int64)
+    for i in range(n):
+        h = (bits[i, 0] * 0x1E3779B97F4A7C15) ^ (bits[i, 1] * 0x42B2AE3D27D4EB4F) ^ (bits[i, 2] * 0x165667B19E3779F9)
+        slot = (h ^ (h >> 29)) & (size - 1)
+        while True:
+            j = table[slot]
+            if j < 0:
+                table[slot] = i
+                out[i] = i
+                break
+            if bits[j, 0] == bits[i, 0] and bits[j, 1] == bits[i, 1] and bits[j, 2] == bits[i, 2]:
+                out[i] = j
+                break
+            slot = (slot + 1) & (size - 1)
+    return out
+
+
+def canonical_vertices(points: np.ndarray) -> np.ndarray:
+    """The lowest index of the vertices at the position of every vertex (V,): coincident vertices as one
+    (finite coordinates; -0.0 and 0.0 are one position)."""
+    # adding 0.0 turns -0.0 into 0.0, so that equal positions have equal bits
+    bits = np.ascontiguousarray(np.asarray(points, np.float64).reshape(-1, 3) + 0.0).view(np.int64)
+    return _first_of_equal_rows(bits)
 
 
 def intersecting_faces(points, faces, *, query=None, order=None, coincident: str = "apart") -> np.ndarray:
@@ -735,8 +758,8 @@ def intersecting_faces(points, faces, *, query=None, order=None, coincident: str
     hits = _intersecting_faces(points, faces, query, order)
     if coincident == "shared" and hits.any():
         pts, fcs = as_triangle_mesh(points, faces)
-        joined = _coincident_corners_joined(pts, fcs, hits)
-        if joined is not None:  # a pair that meets with the vertices joined meets apart: both faces are hits
+        joined = canonical_vertices(pts)[fcs]
+        if not np.array_equal(joined, fcs):  # a pair that meets with the vertices joined meets apart: both are hits
             hits = _intersecting_faces(pts, joined, hits if query is None else hits & np.asarray(query, bool), order)
     return hits
 

@@ -41,9 +41,9 @@ import numpy as np
 
 from pverosion.kernels._jit import njit
 from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges
-from pverosion.kernels.exact.intersection import candidate_pairs
+from pverosion.kernels.exact.intersection import candidate_pairs, canonical_vertices
 from pverosion.kernels.exact.predicates import sign_orient2d, sign_orient3d
-from pverosion.kernels.validation import as_triangle_mesh
+from pverosion.kernels.validation import as_triangle_mesh, unique_rows
 
 __all__ = ["CASES", "IMPOSSIBLE_CASES", "IntersectionCurves", "canonical_vertices", "coplanar_segments",
            "intersection_curves", "trace_polylines", "unique_rows"]
@@ -920,60 +920,6 @@ def _merge_coincident(keys, coords, segments, pairs, locations):
 def _in_one_plane(plane: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     """Whether the two faces of each pair (N, 2) are known to lie in one plane (N,) bool."""
     return plane[pairs[:, 0]] == plane[pairs[:, 1]]
-
-
-def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Sorted unique rows of an (N, K) integer array and the index of every input row among them (N,)."""
-    if len(rows) == 0:
-        return rows.copy(), np.zeros(0, np.int64)
-    lo = rows.min(axis=0)
-    span = rows.max(axis=0) - lo + 1
-    if np.prod(span.astype(np.float64)) < 2.0**62:  # one sort of packed keys instead of a sort per column
-        key = np.zeros(len(rows), np.int64)
-        for k in range(rows.shape[1]):
-            key = key * span[k] + (rows[:, k] - lo[k])
-        _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
-        return rows[first], inverse.reshape(-1)
-    order = np.lexsort(rows.T[::-1])
-    ordered = rows[order]
-    new = np.r_[True, np.any(ordered[1:] != ordered[:-1], axis=1)]
-    inverse = np.empty(len(rows), np.int64)
-    inverse[order] = np.cumsum(new) - 1
-    return ordered[new], inverse
-
-
-@njit(cache=True)
-def _first_of_equal_rows(bits: np.ndarray) -> np.ndarray:
-    """The lowest index of the rows equal to every row of ``bits`` (V, 3) int64, by an open-addressing hash table
-    (one pass in index order, so the first row of every position is met first)."""
-    n = bits.shape[0]
-    size = np.int64(16)
-    while size < 2 * n:
-        size *= 2
-    table = np.full(size, -1, np.int64)
-    out = np.empty(n, np.int64)
-    for i in range(n):
-        h = (bits[i, 0] * 0x1E3779B97F4A7C15) ^ (bits[i, 1] * 0x42B2AE3D27D4EB4F) ^ (bits[i, 2] * 0x165667B19E3779F9)
-        slot = (h ^ (h >> 29)) & (size - 1)
-        while True:
-            j = table[slot]
-            if j < 0:
-                table[slot] = i
-                out[i] = i
-                break
-            if bits[j, 0] == bits[i, 0] and bits[j, 1] == bits[i, 1] and bits[j, 2] == bits[i, 2]:
-                out[i] = j
-                break
-            slot = (slot + 1) & (size - 1)
-    return out
-
-
-def canonical_vertices(points: np.ndarray) -> np.ndarray:
-    """The lowest index of the vertices at the position of every vertex (V,): coincident vertices as one
-    (finite coordinates; -0.0 and 0.0 are one position)."""
-    # adding 0.0 turns -0.0 into 0.0, so that equal positions have equal bits
-    bits = np.ascontiguousarray(np.asarray(points, np.float64).reshape(-1, 3) + 0.0).view(np.int64)
-    return _first_of_equal_rows(bits)
 
 
 def intersection_curves(points, faces, *, group=None) -> IntersectionCurves:
