@@ -9,6 +9,7 @@ from pverosion.kernels.curvature.operator import CurvatureOperator, principal_cu
 from pverosion.kernels.mesh.locality import (
     LOCAL_SPAN,
     MORTON_BITS,
+    SMALL_SORT,
     locality_renumbering,
     morton_renumbering,
     poor_locality,
@@ -67,6 +68,16 @@ def test_morton_renumbering_is_the_stable_order_of_the_cell_codes(bumpy):
     assert np.array_equal(ren.to_caller(ren.to_local(points)), points)
     assert np.array_equal(ren.sorted_faces(faces), locality_sorted(ren.faces(faces), len(points))[1])
     assert np.median(np.ptp(ren.faces(faces), axis=1)) < np.median(np.ptp(faces, axis=1)) / 100
+
+
+@pytest.mark.parametrize("n", [SMALL_SORT - 1, SMALL_SORT])
+def test_morton_order_is_the_same_with_short_and_long_digits(n):
+    """Fewer than SMALL_SORT points are sorted in three passes of 10-bit digits, more in two of 15 bits: both give
+    the stable order of the codes, clustered points (many in one cell) included."""
+    rng = np.random.default_rng(n)
+    points = np.concatenate([rng.normal(size=(n - n // 4, 3)), rng.normal(scale=1e-6, size=(n // 4, 3))])
+    points = points[rng.permutation(n)]
+    assert np.array_equal(morton_renumbering(points).order, np.argsort(_codes(points), kind="stable"))
 
 
 def test_locality_renumbering_only_for_poor_locality(bunny, bumpy):

@@ -9,6 +9,11 @@ Boolean union's compilation on a fresh install, in five pairs of
 ``benchmarks/bench_cold_start.py --per-kernel`` runs. The Python wrapper
 stays: a function compiled without it crashes the process when Python calls
 it.
+
+Indexing is the other shared concern: numba tests every signed index for a
+negative value, to count it from the end as Python does. :func:`unsigned`
+marks an index known to be non-negative (a vertex, face or slot number read
+from an array), so the hot scatter and gather loops skip that test.
 """
 
 from __future__ import annotations
@@ -17,8 +22,9 @@ from collections.abc import Callable
 from typing import Any
 
 import numba
+import numpy as np
 
-__all__ = ["njit"]
+__all__ = ["njit", "unsigned"]
 
 
 def njit(*args: Any, **options: Any) -> Callable:
@@ -26,3 +32,10 @@ def njit(*args: Any, **options: Any) -> Callable:
     parentheses."""
     options.setdefault("no_cfunc_wrapper", True)
     return numba.njit(*args, **options)
+
+
+@njit(cache=True, inline="always")
+def unsigned(i):
+    """Index ``i``, known to be non-negative, as an unsigned integer: numba then indexes with it without the test
+    for a negative index. Use it only as a subscript: arithmetic mixing it with signed integers gives floats."""
+    return np.uint64(i)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pverosion.kernels._jit import njit
+from pverosion.kernels._jit import njit, unsigned
 
 CHUNKS = 4
 """Number of face chunks (and accumulators) of every scatter-add."""
@@ -156,10 +156,11 @@ def owned_add(acc, spill, spill_rows, slot, lo, hi, i, a, b, c, d):
     """Add ``(a, b, c, d)`` to row ``i`` of ``acc`` (V, 4) when it lies in ``lo`` to ``hi``, else store them and
     ``i`` in ``slot`` of ``spill`` (S, 4) and ``spill_rows`` (S,); returns the chunk's next slot."""
     if i >= lo and i < hi:  # not lo <= i < hi, which numba compiles into a far slower loop
-        acc[i, 0] += a
-        acc[i, 1] += b
-        acc[i, 2] += c
-        acc[i, 3] += d
+        row = unsigned(i)
+        acc[row, 0] += a
+        acc[row, 1] += b
+        acc[row, 2] += c
+        acc[row, 3] += d
         return slot
     spill[slot, 0] = a
     spill[slot, 1] = b

@@ -16,7 +16,7 @@ import numpy as np
 from numba import prange
 
 from pverosion.kernels import _vec3 as v3
-from pverosion.kernels._jit import njit
+from pverosion.kernels._jit import njit, unsigned
 from pverosion.kernels._scatter import OwnedRows, add_outside, chunk_range, owned_add, owned_rows, owned_start
 from pverosion.kernels._threads import for_chunks, for_ranges
 from pverosion.kernels.mesh.geometry import face_normal_terms, mixed_corner_areas, normal_terms
@@ -140,7 +140,7 @@ def _gather(values, corners, n, g, row):
     in rows 9 to 17 and the frame tangents in rows 18 to 26."""
     for k in range(n):
         for j in range(3):
-            i = corners[j, k]
+            i = unsigned(corners[j, k])
             for d in range(3):
                 g[row + 3 * j + d, k] = values[i, d]
 
@@ -150,7 +150,7 @@ def _gather_fit(points, normals, corners, n, g):
     """:func:`_gather` of the points and the vertex normals, in one pass."""
     for k in range(n):
         for j in range(3):
-            i = corners[j, k]
+            i = unsigned(corners[j, k])
             for d in range(3):
                 g[3 * j + d, k] = points[i, d]
                 g[9 + 3 * j + d, k] = normals[i, d]
@@ -429,8 +429,9 @@ def _restored_curvature_range(normals, tangents, acc, order, k1, k2, d1, d2, are
     """:func:`_curvature_range` of local vertices ``start`` to ``stop``, stored with their normals in the
     caller's rows ``order[i]``."""
     for i in range(start, stop):
-        _vertex_curvature(normals, tangents, acc, i, order[i], k1, k2, d1, d2, area)
-        v3.store(normals_out, order[i], v3.row(normals, i))
+        row = unsigned(order[i])
+        _vertex_curvature(normals, tangents, acc, i, row, k1, k2, d1, d2, area)
+        v3.store(normals_out, row, v3.row(normals, i))
 
 
 def _vertex_curvatures(normals: np.ndarray, tangents: np.ndarray, acc: np.ndarray,

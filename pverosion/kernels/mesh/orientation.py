@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pverosion.kernels import _vec3 as v3
-from pverosion.kernels._jit import njit
+from pverosion.kernels._jit import njit, unsigned
 from pverosion.kernels._scatter import CHUNKS, OwnedRows, chunk_range, outside_corners, owner_rows
 from pverosion.kernels._threads import for_chunks, for_ranges, range_count
 from pverosion.kernels.mesh.locality import locality_renumbering
@@ -147,25 +147,25 @@ def _propagate_parts(faces, partner, bounds, state, seed_of, stack, seeds, n_see
             top = 1
             while top > 0:
                 top -= 1
-                f = stack[lo + top]
-                here = state[f]
+                f = stack[unsigned(lo + top)]
+                here = state[unsigned(f)]
                 for k in range(3):
                     h = 3 * f + k
-                    q = partner[h]
+                    q = partner[unsigned(h)]
                     if q < 0:
                         continue
                     g = q // 3
                     if g < lo or g >= hi:
                         if h < q:
-                            cross[3 * lo + n_out] = h
+                            cross[unsigned(3 * lo + n_out)] = h
                             n_out += 1
                         continue
-                    there = state[g]
+                    there = state[unsigned(g)]
                     turn = (here & _FLIP) ^ (_FLIP if ((here >> k) ^ (there >> (q - 3 * g))) & 1 == 0 else 0)
                     if not there & _SEEN:
-                        state[g] = there | _SEEN | turn
-                        seed_of[g] = seed
-                        stack[lo + top] = g
+                        state[unsigned(g)] = there | _SEEN | turn
+                        seed_of[unsigned(g)] = seed
+                        stack[unsigned(lo + top)] = g
                         top += 1
                     elif h < q and (there & _FLIP) != turn:
                         conflict[p] = True
@@ -341,14 +341,14 @@ def _settle_chunk(points, faces, root_comp, root_flip, state, labels, flip, comp
     here = -1  # the component whose volume ``total`` holds, added in face order as the array would be
     total = 0.0
     for f in range(start, stop):
-        label = labels[f]
+        label = unsigned(labels[f])
         comp = root_comp[label]
         component[f] = comp
         reverse = ((state[f] & _FLIP) != 0) ^ root_flip[label]
         flip[f] = reverse
-        a = v3.sub(v3.row(points, faces[f, 0]), origin)
-        b = v3.sub(v3.row(points, faces[f, 1]), origin)
-        cc = v3.sub(v3.row(points, faces[f, 2]), origin)
+        a = v3.sub(v3.row(points, unsigned(faces[f, 0])), origin)
+        b = v3.sub(v3.row(points, unsigned(faces[f, 1])), origin)
+        cc = v3.sub(v3.row(points, unsigned(faces[f, 2])), origin)
         det = v3.dot(a, v3.cross(b, cc))  # reversing the face negates it exactly
         if comp != here:
             if here >= 0:

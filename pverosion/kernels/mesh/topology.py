@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pverosion.kernels._jit import njit
+from pverosion.kernels._jit import njit, unsigned
 from pverosion.kernels._threads import for_ranges, range_count
 
 __all__ = [
@@ -315,9 +315,9 @@ def _count_parts(faces, bounds, lows, mids, repeated, start, stop):
                 repeated[p] += 1
                 continue
             j = _lowest_corner(a0, a1, a2)
-            lows[p, faces[f, j]] += 1
+            lows[p, unsigned(faces[f, j])] += 1
             b, c = faces[f, (j + 1) % 3], faces[f, (j + 2) % 3]
-            mids[p, b if b < c else c] += 1
+            mids[p, unsigned(b if b < c else c)] += 1
 
 
 @njit(cache=True, error_model="numpy")
@@ -352,16 +352,17 @@ def _fill_parts(faces, bounds, lows, mids, order, rows, far_end, far_half, start
         for f in range(bounds[p], bounds[p + 1]):
             a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
             j = _lowest_corner(a0, a1, a2)
-            i = lows[p, faces[f, j]]
-            lows[p, faces[f, j]] = i + 1
-            order[i] = f
-            rows[i, 0], rows[i, 1], rows[i, 2] = a0, a1, a2
+            low = unsigned(faces[f, j])
+            i = lows[p, low]
+            lows[p, low] = i + 1
+            order[unsigned(i)] = f
+            rows[unsigned(i), 0], rows[unsigned(i), 1], rows[unsigned(i), 2] = a0, a1, a2
             b, c = faces[f, (j + 1) % 3], faces[f, (j + 2) % 3]
             lo, hi = (b, c) if b < c else (c, b)
-            s = mids[p, lo]
-            mids[p, lo] = s + 1
-            far_end[s] = hi
-            far_half[s] = 3 * i + (j + 1) % 3
+            s = mids[p, unsigned(lo)]
+            mids[p, unsigned(lo)] = s + 1
+            far_end[unsigned(s)] = hi
+            far_half[unsigned(s)] = 3 * i + (j + 1) % 3
 
 
 _TALLY = 32
@@ -410,13 +411,14 @@ def _match_sorted_range(rows, starts, far_end, far_half, partner, others, start,
         n_far = 0
         for s in range(n):
             if ends[s] < _NEAR:
-                tally[ends[s]] = (tally[ends[s]] + (1 << _TALLY)) ^ s
+                e = unsigned(ends[s])
+                tally[e] = (tally[e] + (1 << _TALLY)) ^ s
             else:
                 far[n_far] = s
                 n_far += 1
         for s in range(n):
             if ends[s] < _NEAR:
-                x = tally[ends[s]]
+                x = tally[unsigned(ends[s])]
                 count = (x >> _TALLY) - 1
                 mate = (x & low) ^ s
             else:
@@ -427,12 +429,12 @@ def _match_sorted_range(rows, starts, far_end, far_half, partner, others, start,
                     if t != s and ends[t] == ends[s]:
                         count += 1
                         mate = t
-            h = halves[s]
+            h = unsigned(halves[s])
             others[h] = count  # 0 on a boundary edge
-            partner[h] = halves[mate] if count == 1 else -1  # -1 on a boundary or non-manifold edge
+            partner[h] = halves[unsigned(mate)] if count == 1 else -1  # -1 on a boundary or non-manifold edge
         for s in range(n):
             if ends[s] < _NEAR:
-                tally[ends[s]] = 0
+                tally[unsigned(ends[s])] = 0
 
 
 def _sorted_twins_of_triangles(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, ...] | None:
