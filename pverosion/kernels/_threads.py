@@ -234,7 +234,7 @@ def range_count(n_items: int, *, min_items: int = MIN_ITEMS_PER_RANGE) -> int:
     return max(1, min(_threads(), n_items // max(1, min_items)))
 
 
-def for_chunks(kernel: Callable, n_items: int, *args) -> None:
+def for_chunks(kernel: Callable, n_items: int, *args, min_items: int = MIN_ITEMS_PER_RANGE) -> None:
     """Call ``kernel(*args, c)`` for every chunk ``c`` of :data:`~pverosion.kernels._scatter.CHUNKS`, in parallel.
 
     Each call handles the items of
@@ -249,6 +249,8 @@ def for_chunks(kernel: Callable, n_items: int, *args) -> None:
         Number of items (faces) split into chunks; small inputs run in one thread.
     *args
         Leading arguments of ``kernel``.
+    min_items : int, default: MIN_ITEMS_PER_RANGE
+        Fewest items per thread; raise it for passes so short that waking a thread costs more than it saves.
     """
-    threads = max(1, min(_threads(), CHUNKS, n_items // MIN_ITEMS_PER_RANGE))
+    threads = max(1, min(_threads(), CHUNKS, n_items // max(1, min_items)))
     _run([(kernel, (*args, c)) for c in range(CHUNKS)], threads)

@@ -41,8 +41,9 @@ of one cell keep their relative order)."""
 
 SMALL_SORT = 1 << 17
 """Fewest vertices whose Morton codes are sorted in two passes of 15-bit digits; fewer are sorted in three
-passes of 10-bit digits, whose counts (8 KB per chunk instead of 256 KB) stay in a core's caches. Both give
-the same order."""
+passes of 10-bit digits, whose counts (8 KB per chunk instead of 256 KB) stay in a core's caches, and in one
+thread: each of their passes takes a few hundred microseconds or less, about what waking a second thread saves.
+Both give the same order."""
 
 
 @njit(cache=True, error_model="numpy")
@@ -266,8 +267,9 @@ def morton_renumbering(points: np.ndarray) -> Renumbering:
     """
     pts = np.ascontiguousarray(points, dtype=np.float64)
     n = len(pts)
+    short = SMALL_SORT // 2  # fewest vertices per thread of the bounding box and sort passes: one below SMALL_SORT
     box = np.empty((CHUNKS, 2, 3))
-    for_chunks(_box_chunk, n, pts, box)
+    for_chunks(_box_chunk, n, pts, box, min_items=short)
     filled = [c for c in range(CHUNKS) if chunk_range(n, c)[1] > chunk_range(n, c)[0]]
     lo, hi = box[filled, 0].min(axis=0), box[filled, 1].max(axis=0)
     extent = hi - lo
@@ -278,11 +280,11 @@ def morton_renumbering(points: np.ndarray) -> Renumbering:
     digit = 15 if n >= SMALL_SORT else 10
     for shift in range(0, 3 * MORTON_BITS, digit):  # least significant digit first: stable
         counts = np.zeros((CHUNKS, 1 << digit), np.int64)
-        for_chunks(_count_chunk, n, codes, order, shift, counts)
-        for_chunks(_place_chunk, n, codes, order, shift, _offsets(counts), spare)
+        for_chunks(_count_chunk, n, codes, order, shift, counts, min_items=short)
+        for_chunks(_place_chunk, n, codes, order, shift, _offsets(counts), spare, min_items=short)
         order, spare = spare, order
     rank = np.empty(n, np.int64)
-    for_ranges(_rank_range, n, order, rank)
+    for_ranges(_rank_range, n, order, rank, min_items=short)
     return Renumbering(order, rank)
 
 
