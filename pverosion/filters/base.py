@@ -656,15 +656,14 @@ def _make_getter(name):
     return getter
 
 
-def polydata_triangles(mesh: vtkPolyData, *, check_points: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def polydata_triangles(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:
     """Points (V, 3) and triangles (F, 3) of a vtkPolyData, without copying where possible.
 
     The one place where the stages take a surface's points from VTK, in the
     type they are stored in: points stored in a type too coarse for the mesh's
     edges (float32 far from the origin) are warned about here
-    (:func:`~pverosion.kernels.validation.check_coordinate_precision`).
-    With ``check_points=False`` the coordinates are not tested for NaN or
-    infinite values (for callers that check them anyway).
+    (:func:`~pverosion.kernels.validation.check_coordinate_precision`), once
+    the points are known to be finite.
 
     Warns
     -----
@@ -679,6 +678,16 @@ def polydata_triangles(mesh: vtkPolyData, *, check_points: bool = True) -> tuple
         If the mesh has no points, points with NaN or infinite coordinates,
         no polygons, triangle strips, or polygons that are not triangles.
     """
+    points, faces = _stored_triangles(mesh)
+    if not np.isfinite(points).all():
+        as_points(points)  # raises InvalidMeshError naming the vertices
+    check_coordinate_precision(points, faces)
+    return points, faces
+
+
+def _stored_triangles(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:
+    """The points (V, 3), in their stored type, and triangles (F, 3) of a vtkPolyData, as views; the checks of
+    :func:`polydata_triangles` but those of the coordinates."""
     if mesh is None or not isinstance(mesh, vtkPolyData):
         raise InvalidMeshError(f"expected a vtkPolyData surface; got {type(mesh).__name__}")
     if mesh.GetNumberOfPoints() == 0:
@@ -697,11 +706,7 @@ def polydata_triangles(mesh: vtkPolyData, *, check_points: bool = True) -> tuple
             "triangulate it first (mesh.triangulate())"
         )
     faces = numpy_support.vtk_to_numpy(polys.GetConnectivityArray()).reshape(-1, 3)
-    points = numpy_support.vtk_to_numpy(mesh.GetPoints().GetData())
-    if check_points and not np.isfinite(points).all():
-        as_points(points)  # raises InvalidMeshError naming the vertices
-    check_coordinate_precision(points, faces)
-    return points, faces
+    return numpy_support.vtk_to_numpy(mesh.GetPoints().GetData()), faces
 
 
 def polydata_triangle_mesh(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:
@@ -724,8 +729,10 @@ def polydata_triangle_mesh(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:
         As :func:`polydata_triangles`, or if a triangle names a point that
         does not exist.
     """
-    points, faces = polydata_triangles(mesh, check_points=False)
-    return as_points(points), as_faces(faces, len(points))
+    stored, faces = _stored_triangles(mesh)
+    points = as_points(stored)
+    check_coordinate_precision(stored, faces)
+    return points, as_faces(faces, len(points))
 
 
 def replace_triangles(mesh: vtkPolyData, faces: np.ndarray) -> None:
