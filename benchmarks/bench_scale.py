@@ -17,7 +17,7 @@ its peak resident memory is its own) and prints, for that size:
 Numba compilation is excluded by a warm-up on the smallest mesh.
 
     python benchmarks/bench_scale.py [--data ../shared/data/bunny.ply] [--sizes 100000,400000,1600000]
-        [--repeat 5] [--steps 10] [--load N]
+        [--repeat 15] [--steps 10] [--load N]
 """
 
 from __future__ import annotations
@@ -107,7 +107,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DEFAULT)
     parser.add_argument("--sizes", default="100000,400000,1600000", help="target face counts, comma separated")
-    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--repeat", type=int, default=15)
     parser.add_argument("--steps", type=int, default=10)
     parser.add_argument("--one", type=int, help=argparse.SUPPRESS)  # internal: measure this size only
     add_load_option(parser)
