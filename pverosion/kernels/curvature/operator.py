@@ -128,7 +128,7 @@ def _corner_ids(faces, ids, first, n, corners):
     """The vertices of the ``n`` faces from ``first`` on (faces ``ids[first + k]`` when ``ids`` is not empty)
     into ``corners`` (3, BATCH): corner ``j`` of face ``k`` at ``[j, k]``."""
     for k in range(n):
-        f = ids[first + k] if ids.shape[0] else first + k
+        f = unsigned(ids[first + k] if ids.shape[0] else first + k)
         for j in range(3):
             corners[j, k] = faces[f, j]
 
@@ -313,7 +313,7 @@ def _add_batch(acc, spill, spill_rows, slot, lo, hi, faces, first, n, out):
     rows of ``acc`` (V, 4) (:func:`~pverosion.kernels._scatter.owned_add`); returns the next slot."""
     for k in range(n):
         for j in range(3):
-            slot = owned_add(acc, spill, spill_rows, slot, lo, hi, faces[first + k, j], out[4 * j, k],
+            slot = owned_add(acc, spill, spill_rows, slot, lo, hi, faces[unsigned(first + k), j], out[4 * j, k],
                              out[4 * j + 1, k], out[4 * j + 2, k], out[4 * j + 3, k])
     return slot
 
