@@ -132,18 +132,20 @@ def _propagate_parts(faces, partner, bounds, state, seed_of, stack, seeds, n_see
     for p in range(start, stop):
         lo, hi = bounds[p], bounds[p + 1]
         for f in range(lo, hi):
-            a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
-            state[f] = np.uint8((a0 < a1) | ((a1 < a2) << 1) | ((a2 < a0) << 2))
+            u = unsigned(f)
+            a0, a1, a2 = faces[u, 0], faces[u, 1], faces[u, 2]
+            state[u] = np.uint8((a0 < a1) | ((a1 < a2) << 1) | ((a2 < a0) << 2))
         n_seed = 0
         n_out = 0
         for seed in range(lo, hi):
-            if state[seed] & _SEEN:
+            u = unsigned(seed)
+            if state[u] & _SEEN:
                 continue
-            state[seed] |= _SEEN
-            seed_of[seed] = seed
-            seeds[lo + n_seed] = seed
+            state[u] |= _SEEN
+            seed_of[u] = seed
+            seeds[unsigned(lo + n_seed)] = seed
             n_seed += 1
-            stack[lo] = seed
+            stack[unsigned(lo)] = seed
             top = 1
             while top > 0:
                 top -= 1

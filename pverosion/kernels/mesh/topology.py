@@ -310,13 +310,14 @@ def _count_parts(faces, bounds, lows, mids, repeated, start, stop):
     into ``repeated[p]``."""
     for p in range(start, stop):
         for f in range(bounds[p], bounds[p + 1]):
-            a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
+            u = unsigned(f)
+            a0, a1, a2 = faces[u, 0], faces[u, 1], faces[u, 2]
             if a0 == a1 or a1 == a2 or a2 == a0:
                 repeated[p] += 1
                 continue
             j = _lowest_corner(a0, a1, a2)
-            lows[p, unsigned(faces[f, j])] += 1
-            b, c = faces[f, (j + 1) % 3], faces[f, (j + 2) % 3]
+            lows[p, unsigned(faces[u, j])] += 1
+            b, c = faces[u, (j + 1) % 3], faces[u, (j + 2) % 3]
             mids[p, unsigned(b if b < c else c)] += 1
 
 
@@ -350,14 +351,15 @@ def _fill_parts(faces, bounds, lows, mids, order, rows, far_end, far_half, start
     and its half-edge of the sorted faces into ``far_half``."""
     for p in range(start, stop):
         for f in range(bounds[p], bounds[p + 1]):
-            a0, a1, a2 = faces[f, 0], faces[f, 1], faces[f, 2]
+            u = unsigned(f)
+            a0, a1, a2 = faces[u, 0], faces[u, 1], faces[u, 2]
             j = _lowest_corner(a0, a1, a2)
-            low = unsigned(faces[f, j])
+            low = unsigned(faces[u, j])
             i = lows[p, low]
             lows[p, low] = i + 1
             order[unsigned(i)] = f
             rows[unsigned(i), 0], rows[unsigned(i), 1], rows[unsigned(i), 2] = a0, a1, a2
-            b, c = faces[f, (j + 1) % 3], faces[f, (j + 2) % 3]
+            b, c = faces[u, (j + 1) % 3], faces[u, (j + 2) % 3]
             lo, hi = (b, c) if b < c else (c, b)
             s = mids[p, unsigned(lo)]
             mids[p, unsigned(lo)] = s + 1
@@ -401,12 +403,13 @@ def _match_sorted_range(rows, starts, far_end, far_half, partner, others, start,
             far = np.empty(2 * size, np.int64)
         n = 0
         for i in range(first, last):
-            j = _lowest_corner(rows[i, 0], rows[i, 1], rows[i, 2])
-            ends[n], halves[n] = rows[i, (j + 1) % 3] - v, 3 * i + j
-            ends[n + 1], halves[n + 1] = rows[i, (j + 2) % 3] - v, 3 * i + (j + 2) % 3
+            u = unsigned(i)
+            j = _lowest_corner(rows[u, 0], rows[u, 1], rows[u, 2])
+            ends[n], halves[n] = rows[u, (j + 1) % 3] - v, 3 * i + j
+            ends[n + 1], halves[n + 1] = rows[u, (j + 2) % 3] - v, 3 * i + (j + 2) % 3
             n += 2
         for s in range(starts[1, v], starts[1, v + 1]):
-            ends[n], halves[n] = far_end[s] - v, far_half[s]
+            ends[n], halves[n] = far_end[unsigned(s)] - v, far_half[unsigned(s)]
             n += 1
         n_far = 0
         for s in range(n):
