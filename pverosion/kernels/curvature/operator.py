@@ -104,9 +104,10 @@ def _frame_range(acc, normals, tangents, start, stop):
     """:func:`_unit_range` and the first frame tangents of vertices ``start`` to ``stop``; zero where the normal
     is."""
     for i in range(start, stop):
-        nrm = _unit_sum(acc, i)
-        v3.store(normals, i, nrm)
-        v3.store(tangents, i, _normal_frame(nrm)[0] if v3.dot(nrm, nrm) != 0.0 else (0.0, 0.0, 0.0))
+        u = unsigned(i)
+        nrm = _unit_sum(acc, u)
+        v3.store(normals, u, nrm)
+        v3.store(tangents, u, _normal_frame(nrm)[0] if v3.dot(nrm, nrm) != 0.0 else (0.0, 0.0, 0.0))
 
 
 BATCH = 32
@@ -429,9 +430,9 @@ def _restored_curvature_range(normals, tangents, acc, order, k1, k2, d1, d2, are
     """:func:`_curvature_range` of local vertices ``start`` to ``stop``, stored with their normals in the
     caller's rows ``order[i]``."""
     for i in range(start, stop):
-        row = unsigned(order[i])
-        _vertex_curvature(normals, tangents, acc, i, row, k1, k2, d1, d2, area)
-        v3.store(normals_out, row, v3.row(normals, i))
+        u, row = unsigned(i), unsigned(order[i])
+        _vertex_curvature(normals, tangents, acc, u, row, k1, k2, d1, d2, area)
+        v3.store(normals_out, row, v3.row(normals, u))
 
 
 def _vertex_curvatures(normals: np.ndarray, tangents: np.ndarray, acc: np.ndarray,

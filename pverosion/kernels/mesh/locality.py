@@ -159,8 +159,9 @@ def _rank_range(order, rank, start, stop):
 @njit(cache=True, nogil=True)
 def _map_faces(faces, rank, out, start, stop):
     for f in range(start, stop):
+        u = unsigned(f)
         for k in range(3):
-            out[f, k] = rank[unsigned(faces[f, k])]
+            out[u, k] = rank[unsigned(faces[u, k])]
 
 
 @njit(cache=True, error_model="numpy")
@@ -185,9 +186,9 @@ def _renumbered_sorted(faces, rank):
 @njit(cache=True, nogil=True)
 def _take_rows(src, index, out, start, stop):
     for i in range(start, stop):
-        j = unsigned(index[i])
+        u, j = unsigned(i), unsigned(index[i])
         for d in range(src.shape[1]):
-            out[i, d] = src[j, d]
+            out[u, d] = src[j, d]
 
 
 def _take(values: np.ndarray, index: np.ndarray, out: np.ndarray | None) -> np.ndarray:

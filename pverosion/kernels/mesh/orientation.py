@@ -343,14 +343,15 @@ def _settle_chunk(points, faces, root_comp, root_flip, state, labels, flip, comp
     here = -1  # the component whose volume ``total`` holds, added in face order as the array would be
     total = 0.0
     for f in range(start, stop):
-        label = unsigned(labels[f])
+        u = unsigned(f)
+        label = unsigned(labels[u])
         comp = root_comp[label]
-        component[f] = comp
-        reverse = ((state[f] & _FLIP) != 0) ^ root_flip[label]
-        flip[f] = reverse
-        a = v3.sub(v3.row(points, unsigned(faces[f, 0])), origin)
-        b = v3.sub(v3.row(points, unsigned(faces[f, 1])), origin)
-        cc = v3.sub(v3.row(points, unsigned(faces[f, 2])), origin)
+        component[u] = comp
+        reverse = ((state[u] & _FLIP) != 0) ^ root_flip[label]
+        flip[u] = reverse
+        a = v3.sub(v3.row(points, unsigned(faces[u, 0])), origin)
+        b = v3.sub(v3.row(points, unsigned(faces[u, 1])), origin)
+        cc = v3.sub(v3.row(points, unsigned(faces[u, 2])), origin)
         det = v3.dot(a, v3.cross(b, cc))  # reversing the face negates it exactly
         if comp != here:
             if here >= 0:
