@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from pverosion.kernels import _vec3 as v3
-from pverosion.kernels._jit import njit
+from pverosion.kernels._jit import njit, unsigned
 from pverosion.kernels._threads import HEAVY_ITEMS_PER_RANGE, for_ranges
 from pverosion.kernels.tolerances import COPLANAR
 from pverosion.kernels.validation import as_triangle_mesh
@@ -203,9 +203,10 @@ def _box_range(points, faces, order, local, box, ok, side, start, stop):
     """Faces ``start`` to ``stop`` of ``local`` = ``faces[order]``: their vertices, boxes (lowest then highest
     corner in one row of ``box``), whether they are non-degenerate and their largest side."""
     for f in range(start, stop):
-        g = order[f]
-        local[f, 0], local[f, 1], local[f, 2] = faces[g, 0], faces[g, 1], faces[g, 2]
-        p0, p1, p2 = v3.row(points, local[f, 0]), v3.row(points, local[f, 1]), v3.row(points, local[f, 2])
+        g = unsigned(order[f])
+        a, b, c = faces[g, 0], faces[g, 1], faces[g, 2]
+        local[f, 0], local[f, 1], local[f, 2] = a, b, c
+        p0, p1, p2 = v3.row(points, unsigned(a)), v3.row(points, unsigned(b)), v3.row(points, unsigned(c))
         for d in range(3):
             box[f, d] = min(p0[d], p1[d], p2[d])
             box[f, 3 + d] = max(p0[d], p1[d], p2[d])
@@ -305,7 +306,7 @@ def _bucket_fill(offset, bucket, keys, size):
     n = bucket.shape[0]
     start = np.zeros(size + 1, np.int64)
     for k in range(n):
-        start[bucket[k] + 1] += 1
+        start[unsigned(bucket[k] + 1)] += 1
     for b in range(size):
         start[b + 1] += start[b]
     fill = start[:-1].copy()
@@ -313,10 +314,11 @@ def _bucket_fill(offset, bucket, keys, size):
     cells = np.empty(n, np.int64)
     for f in range(offset.shape[0] - 1):
         for k in range(offset[f], offset[f + 1]):
-            b = bucket[k]
-            i = fill[b]
+            u = unsigned(k)
+            b = unsigned(bucket[u])
+            i = unsigned(fill[b])
             entries[i] = f
-            cells[i] = keys[k]
+            cells[i] = keys[u]
             fill[b] = i + 1
     return start, entries, cells
 
@@ -353,16 +355,18 @@ def _hits_range(points, faces, box, start, entries, cells, hits, first, last):
     then highest corner, in one row."""
     for b in range(first, last):
         for i in range(start[b], start[b + 1] - 1):
-            key = cells[i]
+            key = cells[unsigned(i)]
             f = -1
             for j in range(i + 1, start[b + 1]):
-                if (cells[j] ^ key) >> 4 != 0 or (cells[j] | key) & 15 != 15:
+                there = cells[unsigned(j)]
+                if (there ^ key) >> 4 != 0 or (there | key) & 15 != 15:
                     continue  # another cell hashed here, the pair meets in an earlier cell, or neither is queried
                 if f < 0:  # the face's box and corners, read once a pair needs them
-                    f = entries[i]
-                    x0, y0, z0, x1, y1, z1 = box[f, 0], box[f, 1], box[f, 2], box[f, 3], box[f, 4], box[f, 5]
-                    a, b_, c = faces[f, 0], faces[f, 1], faces[f, 2]
-                g = entries[j]
+                    f = entries[unsigned(i)]
+                    fu = unsigned(f)
+                    x0, y0, z0, x1, y1, z1 = box[fu, 0], box[fu, 1], box[fu, 2], box[fu, 3], box[fu, 4], box[fu, 5]
+                    a, b_, c = faces[fu, 0], faces[fu, 1], faces[fu, 2]
+                g = unsigned(entries[unsigned(j)])
                 u, v, w = faces[g, 0], faces[g, 1], faces[g, 2]
                 # one test without branches: most pairs here are adjacent, and whether their boxes meet is a coin toss
                 adjacent = ((a == u) | (a == v) | (a == w) | (b_ == u) | (b_ == v) | (b_ == w)
@@ -371,9 +375,9 @@ def _hits_range(points, faces, box, start, entries, cells, hits, first, last):
                          | (z0 > box[g, 5]) | (box[g, 2] > z1))
                 if adjacent | apart:
                     continue
-                if tri_tri(v3.row(points, a), v3.row(points, b_), v3.row(points, c),
-                           v3.row(points, u), v3.row(points, v), v3.row(points, w)):
-                    hits[f] = True
+                if tri_tri(v3.row(points, unsigned(a)), v3.row(points, unsigned(b_)), v3.row(points, unsigned(c)),
+                           v3.row(points, unsigned(u)), v3.row(points, unsigned(v)), v3.row(points, unsigned(w))):
+                    hits[fu] = True
                     hits[g] = True  # same value from any thread: a benign race
 
 
