@@ -238,6 +238,23 @@ def test_serial_batch_writes_every_job_and_a_rerun_skips_them(serial_reference):
     assert report.ran == [] and report.skipped == 12 and len(report.rows) == 12
 
 
+@pytest.mark.parametrize(("stage", "options", "block"), [
+    ("hydraulic", 'iterations = 3\nemitter = "0,0,2,0,0,-1,0.3,20"\n', "mesh"),
+    ("shard-graph", "cells = 30\n", "surface"),
+    ("freeze-thaw", "iterations = 2\ncells = 40\npaths_per_step = 50\n", "surface"),
+])
+@pytest.mark.filterwarnings("ignore:hydraulic erosion. the water eroded nothing:UserWarning")
+def test_stages_with_a_multiblock_result_finish_their_jobs(tmp_path, stage, options, block):
+    """A job ending in one of these stages failed after writing its result (its figures were looked for in the
+    blocks of a voxel result); the row now gives the figures of the result's surface block."""
+    path = _write(tmp_path, f'[input]\nexample = "rock"\nsubdivisions = 2\n[[stages]]\nstage = "{stage}"\n{options}')
+    report = run_batch(path, tmp_path / "out", serial=True, progress=False)
+    assert report.failed == 0 and [r["status"] for r in report.rows] == ["done"]
+    row = report.rows[0]
+    surface = pv.read(tmp_path / "out" / "jobs" / row["folder"] / "final.vtm")[block]
+    assert row["points"] == surface.n_points and row["area"] == pytest.approx(surface.area, rel=1e-9)
+
+
 @pytest.mark.filterwarnings("ignore:The VTK reader")
 def test_a_failing_job_is_recorded_and_retried_on_the_next_run(tmp_path):
     pv.Sphere().save(tmp_path / "good.vtp")

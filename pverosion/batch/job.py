@@ -250,16 +250,21 @@ def job_figures(before: pv.DataSet, after: pv.DataSet) -> dict[str, float]:
         ``mean_curvature_mean``, ``mean_curvature_abs_mean``,
         ``mean_curvature_abs_max`` (recomputed on the output, outward);
         ``retries``, ``frozen_vertices`` and ``collapses`` when a weathering
-        stage reported them. For a voxel-erosion MultiBlock: the state's
-        size, the extracted surface's area and curvature, and ``mass_error``.
+        stage reported them. For a MultiBlock, those of its surface: block
+        ``surface`` (voxel erosion, shards, freeze-thaw) or ``mesh``
+        (hydraulic erosion); with a voxel ``state`` block, its size instead and
+        ``mass_error``.
     """
     from pverosion.api import curvature
 
-    if isinstance(after, pv.MultiBlock):  # voxel erosion: the state's size, the surface's figures
-        figures = job_figures(before, after["surface"])
-        figures.update(points=int(after["state"].n_points), cells=int(after["state"].n_cells))
-        if "mass_error" in after["state"].field_data:
-            figures["mass_error"] = float(after["state"].field_data["mass_error"][0])
+    if isinstance(after, pv.MultiBlock):
+        names = after.keys()
+        figures = job_figures(before, after["surface" if "surface" in names else "mesh"])
+        if "state" in names:  # voxel erosion: the state's size
+            state = after["state"]
+            figures.update(points=int(state.n_points), cells=int(state.n_cells))
+            if "mass_error" in state.field_data:
+                figures["mass_error"] = float(state.field_data["mass_error"][0])
         return figures
     figures: dict[str, float] = {"points": int(after.n_points), "cells": int(after.n_cells)}
     if isinstance(after, pv.PolyData) and isinstance(before, pv.PolyData) and after.is_all_triangles:
