@@ -18,6 +18,7 @@ import pyvista as pv
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 
 from pverosion._frontend import apply_filter, renamed, run_filter, stage_function
+from pverosion.filters.base import check_axis_aligned
 from pverosion.filters.curvature import Curvature
 from pverosion.filters.hydraulic import HydraulicErosion
 from pverosion.filters.materials import MaterialSampler, MaterialsFromVolume, surface_option
@@ -183,6 +184,7 @@ def materials_from_volume(
     if isinstance(hardness, str):
         hardness = [float(v) for v in params["hardness"].validate(hardness).split(",")] if hardness else None
     if isinstance(volume, pv.ImageData):
+        check_axis_aligned(volume)
         name = array or volume.active_scalars_name
         if name is None or name not in volume.point_data:
             raise ValueError(f"image has no point array {array!r}" if array else "image has no active scalars")

@@ -33,6 +33,7 @@ __all__ = [
     "ErosionFilter",
     "Param",
     "TimeSteppedFilter",
+    "check_axis_aligned",
     "check_interrupt",
     "deferred_interrupt",
     "numbers_text",
@@ -654,6 +655,25 @@ def _make_getter(name):
     getter.__name__ = f"Get{name}"
     getter.__doc__ = f"Return option ``{name}``."
     return getter
+
+
+def check_axis_aligned(image) -> None:
+    """``ValueError`` for a vtkImageData whose axes are turned against x, y and z (a direction matrix other than
+    the identity, as DICOM and some medical exports carry).
+
+    The stages place an image's samples at ``origin + index * spacing``; a
+    turned image would be built, eroded or sampled at the wrong places. The
+    message names the way to use it anyway: reset the direction and turn the
+    results about the origin by the same matrix.
+    """
+    matrix = image.GetDirectionMatrix()
+    direction = np.array([[matrix.GetElement(i, j) for j in range(3)] for i in range(3)])
+    if not np.array_equal(direction, np.eye(3)):
+        rows = "; ".join(", ".join(f"{v:.6g}" for v in row) for row in direction)
+        raise ValueError(f"the image's axes are turned against x, y and z (direction matrix [{rows}]), which the "
+                         "stages do not follow: set its direction to the identity (image.direction_matrix = "
+                         "numpy.eye(3) in PyVista, SetDirectionMatrix in VTK) and turn the results about the "
+                         "image's origin by the same matrix")
 
 
 def polydata_triangles(mesh: vtkPolyData) -> tuple[np.ndarray, np.ndarray]:

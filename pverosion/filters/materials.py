@@ -8,7 +8,7 @@ from typing import ClassVar
 import numpy as np
 from vtkmodules.util import numpy_support
 
-from pverosion.filters.base import ErosionFilter, Param, parse_numbers, set_field_value
+from pverosion.filters.base import ErosionFilter, Param, check_axis_aligned, parse_numbers, set_field_value
 from pverosion.kernels.materials.bsp import BSP_METHODS, BSP_SURFACES, BSPTree
 from pverosion.kernels.materials.field import (
     BSPMaterials,
@@ -32,7 +32,9 @@ ASSOCIATIONS = ("point", "cell")
 
 
 def grid_points(image, association: str) -> np.ndarray:
-    """World coordinates (N, 3) of the points or cell centres of a vtkImageData, x fastest."""
+    """World coordinates (N, 3) of the points or cell centres of a vtkImageData, x fastest; ``ValueError`` for an
+    image with turned axes (:func:`~pverosion.filters.base.check_axis_aligned`)."""
+    check_axis_aligned(image)
     dims = np.array(image.GetDimensions())
     origin, spacing = np.array(image.GetOrigin()), np.array(image.GetSpacing())
     if association == "cell":
@@ -128,6 +130,7 @@ class MaterialsFromVolume(ErosionFilter):
         thresholds = parse_numbers(self.get_option("thresholds"), "thresholds")
         hardness = parse_numbers(self.get_option("hardness"), "hardness") if self.get_option("hardness") else None
         scale = self.get_option("gradual_scale")
+        check_axis_aligned(inp)
         values = self._volume(inp)
         field = bsp_from_volume(values, thresholds, origin=inp.GetOrigin(), spacing=inp.GetSpacing(),
                                 method=self.get_option("method"), surface=surface_option(self.get_option("surface")),

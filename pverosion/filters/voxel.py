@@ -25,6 +25,7 @@ from vtkmodules.vtkCommonDataModel import vtkImageData
 from pverosion.filters.base import (
     Param,
     TimeSteppedFilter,
+    check_axis_aligned,
     parse_numbers,
     polydata_triangles,
     set_field_value,
@@ -203,6 +204,7 @@ def voxel_grid_from_height_field(heights, *, spacing: float, air: float = 0.0, b
         raise ValueError(f"air must be a finite height >= 0; got {air!r}")
     origin_xy = np.zeros(2)
     if isinstance(heights, vtkImageData):
+        check_axis_aligned(heights)
         image = pv.wrap(heights)
         dims = image.dimensions
         if sum(d > 1 for d in dims) != 2 or dims[2] != 1:
@@ -251,6 +253,7 @@ def voxel_grid_from_volume(volume, *, threshold: float, array: str | None = None
                            material_field: MaterialField | None = None) -> pv.ImageData:
     """Material where a volume's values reach ``threshold`` (on the volume's own grid; cubic voxels needed)."""
     image = pv.wrap(volume)
+    check_axis_aligned(image)
     values = np.asarray(image[array] if array else image.active_scalars, dtype=np.float64)
     sx, sy, sz = image.spacing
     if not (np.isclose(sx, sy) and np.isclose(sx, sz)):
@@ -299,6 +302,7 @@ def extract_material_surface(image, *, method: str = "flying_edges", iso: float 
     if method not in EXTRACTORS:
         raise ValueError(f"method must be one of {EXTRACTORS}; got {method!r}")
     image = pv.wrap(image)
+    check_axis_aligned(image)
     amount = _grid_array(image, "material_amount", required=True)
     bad = amount.size - int(np.count_nonzero(np.isfinite(amount)))
     if bad:
@@ -357,6 +361,7 @@ def voxel_solver(grid, *, params: ErosionParameters | None = None, source_veloci
         Non-cubic voxels, a missing ``material_amount``, bad ``hardness`` or ``source_velocity``.
     """
     amount = _grid_array(grid, "material_amount", required=True)  # first: a raw scan or DEM lacks it
+    check_axis_aligned(grid)
     spacing = np.array(grid.GetSpacing())
     if not (np.isclose(spacing[0], spacing[1]) and np.isclose(spacing[0], spacing[2])):
         raise ValueError(f"voxel erosion needs cubic voxels; the grid's spacing is {tuple(spacing.tolist())}")
