@@ -302,3 +302,19 @@ def test_images_with_turned_axes_are_refused_by_every_image_stage(tmp_path, caps
     turned_ball.save(path)
     assert main(["materials", str(path), "--thresholds", "0.3", "-o", str(tmp_path / "m.vti")]) == 2
     assert "axes are turned" in capsys.readouterr().err and not (tmp_path / "m.vti").exists()
+
+
+def test_a_grid_without_water_or_sources_is_warned_about():
+    """A scan's voxel grid has material only: the run changed nothing and said nothing. With water it runs quietly."""
+    import warnings
+
+    amount = np.zeros((8, 8, 8))
+    amount[:, :, :4] = 1.0
+    with pytest.warns(UserWarning, match="no water outside the material .* and no 'source' voxels"):
+        dry = pverosion.voxel_erosion(voxel_grid(amount, spacing=0.1), iterations=2)
+    np.testing.assert_array_equal(dry["state"]["material_amount"], amount.ravel(order="F"))
+    water = np.zeros_like(amount)
+    water[:, :, 4:6] = 1.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        pverosion.voxel_erosion(voxel_grid(amount, spacing=0.1, water=water), iterations=2)

@@ -462,6 +462,11 @@ class VoxelErosion(TimeSteppedFilter):
                               tolerance=self.get_option("tolerance"), advection=self.get_option("advection"),
                               time_step=self.get_option("time_step"))
         _check_step_work(solver.fluid, cells, self.get_option("time_step"))
+        if not solver.fluid.source.any() and not solver.fluid.water.any():
+            warnings.warn("voxel erosion: the grid has no water outside the material (its 'water' array is missing "
+                          "or zero there) and no 'source' voxels, so no water flows and nothing erodes: give it "
+                          "water or sources (voxel_grid(..., water=..., source=...) in pverosion.filters.voxel, or "
+                          "point arrays 'water' and 'source' on the grid)", UserWarning, stacklevel=2)
         return solver
 
     def _fill(self, solver: VoxelErosionSolver, inp, out) -> None:
