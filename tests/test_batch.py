@@ -273,6 +273,21 @@ def test_a_failing_job_is_recorded_and_retried_on_the_next_run(tmp_path):
     assert not failed.exists()
 
 
+def test_a_changed_input_file_is_computed_again(tmp_path):
+    """The job id named the input file's path only: a re-run after the file changed reported the job as done
+    and kept the old mesh's results. The file's bytes are part of the id now; an unchanged file is still skipped."""
+    pv.Sphere(radius=0.5).save(tmp_path / "in.vtp")
+    path = _write(tmp_path, '[input]\nfile = "in.vtp"\n[[stages]]\nstage = "curvature"\n')
+    first = run_batch(path, tmp_path / "out", serial=True, progress=False)
+    assert run_batch(path, tmp_path / "out", serial=True, progress=False).skipped == 1
+    pv.Sphere(radius=2.0).save(tmp_path / "in.vtp")
+    again = run_batch(path, tmp_path / "out", serial=True, progress=False)
+    assert len(again.ran) == 1 and again.ran != first.ran
+    row = again.rows[0]
+    final = pv.read(tmp_path / "out" / "jobs" / row["folder"] / "final.vtp")
+    assert final.bounds[1] == pytest.approx(2.0, rel=1e-2) and row["volume"] == pytest.approx(final.volume, rel=1e-9)
+
+
 def test_warnings_of_every_job_go_to_its_log_and_the_results(tmp_path):
     """A float32 mesh a million units out is warned about in each job of a sweep (a worker's stderr would show the
     same message once per process): in the job's log and in the results' warnings column; a job without a warning

@@ -35,6 +35,7 @@ and the key.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import inspect
 import itertools
@@ -96,8 +97,9 @@ class Job:
     index : int
         Position in the expanded sweep (0-based).
     id : str
-        SHA-256 of the job's content (input, stages, outputs): the same job in
-        a re-run has the same id, so completed jobs are recognised.
+        SHA-256 of the job's content (input, stages, outputs, and the bytes of
+        an input file): the same job in a re-run has the same id, so completed
+        jobs are recognised; a changed input file makes it another job.
     label : str
         The swept values, e.g. ``"input.seed=1, weather.power=2.0"``.
     input : dict
@@ -327,6 +329,8 @@ def _job(doc: dict, stages: list, labels: list, swept: dict, *, index: int, base
     outputs["save_every"] = _check(Param("save_every", 0, "", minimum=0), outputs["save_every"], "[outputs]")
     outputs["screenshot"] = _check(Param("screenshot", False, ""), outputs["screenshot"], "[outputs]")
     content = {"input": spec_input, "stages": spec_stages, "outputs": outputs}
+    if "file" in spec_input:  # a changed input file is another job: a re-run computes it instead of keeping the old
+        content["input_sha256"] = _file_digest(Path(spec_input["file"]))
     digest = hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
     label = ", ".join(f"{k}={v}" for k, v in swept.items())
     return Job(index=index, id=digest, label=label, input=spec_input, stages=tuple(spec_stages), outputs=outputs,
@@ -338,6 +342,21 @@ def _check(param: Param, value: Any, where: str) -> Any:
         return param.validate(value)
     except (TypeError, ValueError) as exc:
         raise ScenarioError(f"{where}: {exc}") from None
+
+
+def _file_digest(path: Path) -> str:
+    """SHA-256 of a file's bytes, read once per state of the file (path, size, modification time)."""
+    stat = path.stat()
+    return _digest_of(str(path), stat.st_size, stat.st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=64)
+def _digest_of(path: str, size: int, mtime_ns: int) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def _input(table: dict, *, seed: int, base: Path) -> dict:
