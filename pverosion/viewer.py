@@ -10,6 +10,7 @@ without loading everything.
 from __future__ import annotations
 
 import os
+import sys
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -699,8 +700,30 @@ def add_view_command(sub) -> None:
     cmd.add_argument("--window-size", type=int, nargs=2, default=(1024, 768), metavar=("W", "H"))
 
 
+def _check_view_options(args) -> None:
+    """``ValueError`` for options that the chosen mode would leave unused, and for a window without a display."""
+    exports = [flag for flag, value in (("--movie", args.movie), ("--screenshot", args.screenshot),
+                                        ("--paraview-state", args.paraview_state)) if value is not None]
+    if args.live:
+        unused = exports + [flag for flag, value in (
+            ("--web", args.web), ("--scalars", args.scalars), ("--step", args.step), ("--compare", args.compare),
+            ("--compare-run", args.compare_run), ("--statistic", args.statistic)) if value is not None]
+        if unused:
+            raise ValueError(f"--live opens an interactive window on the surface; {', '.join(unused)} "
+                             f"{'does' if len(unused) == 1 else 'do'} not apply to it")
+    elif args.web is not None and exports:
+        raise ValueError(f"--web serves the viewer until stopped and is not combined with {', '.join(exports)}: "
+                         "run the exports first, then --web")
+    window = args.live or (args.web is None and not exports)
+    if window and sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
+                                                            or os.environ.get("WAYLAND_DISPLAY")):
+        raise ValueError("no display to open a window on (DISPLAY is not set): export with --screenshot, --movie "
+                         "or --paraview-state, serve the viewer with --web PORT, or run under xvfb-run")
+
+
 def run_view(args) -> int:
     """Run ``pverosion view`` from parsed arguments; return the exit status."""
+    _check_view_options(args)
     if args.live:
         from pverosion.io import read_mesh
         from pverosion.live import interactive

@@ -287,7 +287,12 @@ def test_cli_checks_the_picture_path_before_reading(tmp_path):
     (["--movie", "shot.gif", "--fps", "1e9"], "fps must be <= 100"),
     (["--movie", "shot.gif", "--fps", "inf"], "fps must be > 0 and finite"),
     (["--web", "99999"], "a port is a number in 0..65535"),
-], ids=["window-zero", "window-huge", "movie-txt", "gif-fps-huge", "fps-inf", "port"])
+    (["--live", "weather", "--screenshot", "shot.png"], "--screenshot does not apply to it"),
+    (["--live", "weather", "--movie", "shot.gif", "--scalars", "k1"], "--movie, --scalars do not apply to it"),
+    (["--web", "8766", "--screenshot", "shot.png"], "--web serves the viewer until stopped and is not combined with "
+                                                    "--screenshot"),
+], ids=["window-zero", "window-huge", "movie-txt", "gif-fps-huge", "fps-inf", "port", "live-screenshot",
+        "live-movie", "web-and-screenshot"])
 def test_cli_refuses_bad_picture_options_before_rendering(series_path, tmp_path, monkeypatch, capsys, options,
                                                            message):
     """An empty image, a std::bad_alloc abort, a TIFF-writer error or an OverflowError became named refusals."""
@@ -299,6 +304,17 @@ def test_cli_refuses_bad_picture_options_before_rendering(series_path, tmp_path,
     assert not any(tmp_path.glob("shot*"))
     with pytest.raises(ValueError, match="window size"):
         view(series_path, off_screen=True, window_size=(-10, 100))
+
+
+def test_cli_window_without_a_display_is_refused(series_path, monkeypatch, capsys):
+    """Without a display VTK printed X server errors and the command exited 0 having shown nothing."""
+    from pverosion.cli import main
+
+    monkeypatch.setattr("sys.platform", "linux")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert main(["view", str(series_path)]) == 2
+    assert "no display to open a window on" in capsys.readouterr().err
 
 
 def test_cli_screenshot_and_paraview_script(series_path, tmp_path):
