@@ -289,8 +289,7 @@ def test_cli_checks_the_picture_path_before_reading(tmp_path):
     (["--web", "99999"], "a port is a number in 0..65535"),
     (["--live", "weather", "--screenshot", "shot.png"], "--screenshot does not apply to it"),
     (["--live", "weather", "--movie", "shot.gif", "--scalars", "k1"], "--movie, --scalars do not apply to it"),
-    (["--web", "8766", "--screenshot", "shot.png"], "--web serves the viewer until stopped and is not combined with "
-                                                    "--screenshot"),
+    (["--web", "8766", "--screenshot", "shot.png"], "--web serves the viewer until stopped"),
 ], ids=["window-zero", "window-huge", "movie-txt", "gif-fps-huge", "fps-inf", "port", "live-screenshot",
         "live-movie", "web-and-screenshot"])
 def test_cli_refuses_bad_picture_options_before_rendering(series_path, tmp_path, monkeypatch, capsys, options,
