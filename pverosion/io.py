@@ -444,7 +444,10 @@ class TimeSeriesWriter:
 
     Each step goes to ``<stem>/<stem>_<index>.<ext>`` and the ``.pvd`` index is
     rewritten after it, both atomically: a run interrupted at any moment
-    leaves a valid collection of all steps completed so far.
+    leaves a valid collection of all steps completed so far. The steps of an
+    earlier series of the same name are removed once the new index replaces
+    its own (after the first step), so the folder holds the new series' steps
+    only.
 
     Parameters
     ----------
@@ -495,7 +498,20 @@ class TimeSeriesWriter:
         target = write_atomic(dataset, self.folder / name)
         self.entries.append((time, f"{self.folder.name}/{name}"))
         self._write_index()
+        if len(self.entries) == 1:
+            self._remove_earlier_steps(keep=target)
         return target
+
+    def _remove_earlier_steps(self, *, keep: Path) -> None:
+        """Remove the step files (and blocks folders) of an earlier series in the folder, but ``keep``."""
+        step = re.compile(rf"{re.escape(self.folder.name)}_\d{{6}}(\.\w+|_blocks)")
+        kept = {keep.name, blocks_folder(keep).name}
+        for item in self.folder.iterdir():
+            if step.fullmatch(item.name) and item.name not in kept:
+                if item.is_dir():
+                    shutil.rmtree(item, ignore_errors=True)
+                else:
+                    item.unlink(missing_ok=True)
 
     def _write_index(self) -> None:
         lines = ['<?xml version="1.0"?>',

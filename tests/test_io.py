@@ -111,3 +111,23 @@ def test_an_image_with_a_grid_that_is_not_finite_is_refused(tmp_path, attribute,
     bad.write_bytes((head[:start] + value + head[head.index('"', start):]).encode() + text[tag_end:])
     with pytest.raises(ValueError, match=f"{attribute} '{value}' is not"):
         read_image(bad)
+
+
+def test_a_series_written_again_keeps_only_its_own_steps(tmp_path):
+    """A shorter run into the name of an earlier series left the earlier steps in its folder: a viewer of the
+    folder showed both runs mixed. The earlier steps go once the new index replaces the old."""
+    path = tmp_path / "run.pvd"
+    with TimeSeriesWriter(path) as series:
+        for step in range(4):
+            series.write(pv.Sphere(radius=1 + step), time=step)
+        series.write(pv.MultiBlock({"a": pv.Sphere()}), time=9)  # a step with a blocks folder
+    assert len(list((tmp_path / "run").iterdir())) == 6
+    with TimeSeriesWriter(path) as series:
+        series.write(pv.Cube(), time=0)
+        assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["run_000000.vtp"]  # an interrupted rerun
+        series.write(pv.Cube(), time=1)
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["run_000000.vtp", "run_000001.vtp"]
+    reader = pv.get_reader(path)
+    assert reader.time_values == [0.0, 1.0]
+    reader.set_active_time_value(1.0)
+    assert reader.read()[0].n_cells == pv.Cube().n_cells
