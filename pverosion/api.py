@@ -21,7 +21,7 @@ from pverosion._frontend import apply_filter, renamed, run_filter, stage_functio
 from pverosion.filters.base import check_axis_aligned
 from pverosion.filters.curvature import Curvature
 from pverosion.filters.hydraulic import HydraulicErosion
-from pverosion.filters.materials import MaterialSampler, MaterialsFromVolume, surface_option
+from pverosion.filters.materials import MaterialSampler, MaterialsFromVolume, check_tree_memory, surface_option
 from pverosion.filters.repair import BooleanOperation, RepairIntersections
 from pverosion.filters.shards import FreezeThaw, ShardGraph
 from pverosion.filters.voxel import VoxelErosion
@@ -195,7 +195,8 @@ def materials_from_volume(
         values, origin, spacing = np.asarray(volume), (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)
     return bsp_from_volume(values, thresholds, origin=origin, spacing=spacing, method=method,
                            surface=surface_option(surface), seed=seed, hardness=hardness,
-                           gradual=Gradual(gradual_scale) if gradual_scale > 0 else None)
+                           gradual=Gradual(gradual_scale) if gradual_scale > 0 else None,
+                           memory_check=check_tree_memory)
 
 
 _GRID = {"dimensions": ("tuple of int, default: (64, 64, 64)", "Grid points along x, y, z."),

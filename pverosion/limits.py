@@ -120,10 +120,11 @@ def check_memory(nbytes: float, *, option: str, what: str, remedy: str | None = 
     limit = memory_limit()
     nbytes = _as_float(nbytes)
     if not nbytes <= limit:
+        source = ("PVEROSION_MEMORY_LIMIT" if os.environ.get("PVEROSION_MEMORY_LIMIT", "").strip()
+                  else "half the available memory, as PVEROSION_MEMORY_LIMIT is not set")
         raise ResourceLimitError(
             f"{option}: {what} would need about {format_bytes(nbytes)}, more than the memory limit of "
-            f"{format_bytes(limit)} (half the available memory unless PVEROSION_MEMORY_LIMIT is set); "
-            f"{remedy or f'lower {option}'}, or raise PVEROSION_MEMORY_LIMIT")
+            f"{format_bytes(limit)} ({source}); {remedy or f'lower {option}'}, or raise PVEROSION_MEMORY_LIMIT")
 
 
 def check_work(operations: float, *, option: str, what: str) -> None:

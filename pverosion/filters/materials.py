@@ -16,9 +16,10 @@ from pverosion.kernels.materials.field import (
     MaterialField,
     bsp_from_volume,
 )
+from pverosion.limits import check_memory
 
-__all__ = ["SURFACE_CHOICES", "MaterialSampler", "MaterialsFromVolume", "grid_points", "parse_numbers", "store_sample",
-           "surface_option"]
+__all__ = ["SURFACE_CHOICES", "MaterialSampler", "MaterialsFromVolume", "check_tree_memory", "grid_points",
+           "parse_numbers", "store_sample", "surface_option"]
 
 SURFACE_CHOICES = ("default", *BSP_SURFACES)
 """Values of the ``surface`` option: ``"default"`` lets the method choose (C-BSP: voxels, S-BSP: isosurface)."""
@@ -29,6 +30,14 @@ def surface_option(value: str) -> str | None:
     return None if value == "default" else value
 
 ASSOCIATIONS = ("point", "cell")
+
+
+def check_tree_memory(nbytes: float, n_faces: int) -> None:
+    """The ``memory_check`` of :func:`~pverosion.kernels.materials.field.bsp_from_volume`: refuse a tree whose
+    build would exceed the memory limit (:func:`~pverosion.limits.check_memory`)."""
+    check_memory(nbytes, option="thresholds", what=f"the tree grown from {n_faces} isosurface triangles",
+                 remedy="smooth or downsample the volume, give fewer thresholds, or build from the voxel surface "
+                        "(the default) or with method='fitted'")
 
 
 def grid_points(image, association: str) -> np.ndarray:
@@ -135,7 +144,7 @@ class MaterialsFromVolume(ErosionFilter):
         field = bsp_from_volume(values, thresholds, origin=inp.GetOrigin(), spacing=inp.GetSpacing(),
                                 method=self.get_option("method"), surface=surface_option(self.get_option("surface")),
                                 seed=self.get_option("seed"), hardness=hardness,
-                                gradual=Gradual(scale) if scale > 0 else None)
+                                gradual=Gradual(scale) if scale > 0 else None, memory_check=check_tree_memory)
         self.UpdateProgress(0.8)
         out.ShallowCopy(inp)
         store_sample(field, inp, out, "point")
