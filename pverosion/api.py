@@ -21,7 +21,13 @@ from pverosion._frontend import apply_filter, renamed, run_filter, stage_functio
 from pverosion.filters.base import check_axis_aligned
 from pverosion.filters.curvature import Curvature
 from pverosion.filters.hydraulic import HydraulicErosion
-from pverosion.filters.materials import MaterialSampler, MaterialsFromVolume, check_tree_memory, surface_option
+from pverosion.filters.materials import (
+    MaterialSampler,
+    MaterialsFromVolume,
+    check_tree_memory,
+    surface_option,
+    volume_values,
+)
 from pverosion.filters.repair import BooleanOperation, RepairIntersections
 from pverosion.filters.shards import FreezeThaw, ShardGraph
 from pverosion.filters.voxel import VoxelErosion
@@ -185,11 +191,7 @@ def materials_from_volume(
         hardness = [float(v) for v in params["hardness"].validate(hardness).split(",")] if hardness else None
     if isinstance(volume, pv.ImageData):
         check_axis_aligned(volume)
-        name = array or volume.active_scalars_name
-        if name is None or name not in volume.point_data:
-            raise ValueError(f"image has no point array {array!r}" if array else "image has no active scalars")
-        nx, ny, nz = volume.dimensions
-        values = np.asarray(volume.point_data[name]).reshape(nz, ny, nx).transpose(2, 1, 0)
+        values = volume_values(volume, array)
         origin, spacing = volume.origin, volume.spacing
     else:
         values, origin, spacing = np.asarray(volume), (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)

@@ -200,3 +200,18 @@ def test_an_isosurface_tree_too_large_for_the_memory_limit_is_refused_before_it_
     monkeypatch.setenv("PVEROSION_MEMORY_LIMIT", "0")  # no limit: the same tree is built
     field = pverosion.materials_from_volume(noise, [0.5], method="simplified", surface="isosurface")
     assert field.stats.extracted_faces > 10_000
+
+
+def test_the_python_function_names_an_unusable_array_as_the_filter_does():
+    """materials_from_volume read arrays itself: a 3-component array failed with 'cannot reshape array', an image with
+    cell data only with 'image has no active scalars'. It now shares the filter's reading."""
+    image = _ball_image(8)
+    image["vectors"] = np.zeros((image.n_points, 3))
+    with pytest.raises(ValueError, match="'vectors' must have one component; it has 3"):
+        pverosion.materials_from_volume(image, [0.2], array="vectors")
+    cells = pv.ImageData(dimensions=(8, 8, 8))
+    cells.cell_data["density"] = np.linspace(0.0, 1.0, cells.n_cells)
+    with pytest.raises(ValueError, match=r"no point scalars \(its cell arrays \['density'\] are not thresholded"):
+        pverosion.materials_from_volume(cells, [0.5])
+    with pytest.raises(ValueError, match="no point array 'missing'"):
+        pverosion.materials_from_volume(image, [0.2], array="missing")

@@ -19,7 +19,7 @@ from pverosion.kernels.materials.field import (
 from pverosion.limits import check_memory
 
 __all__ = ["SURFACE_CHOICES", "MaterialSampler", "MaterialsFromVolume", "check_tree_memory", "grid_points",
-           "parse_numbers", "store_sample", "surface_option"]
+           "parse_numbers", "store_sample", "surface_option", "volume_values"]
 
 SURFACE_CHOICES = ("default", *BSP_SURFACES)
 """Values of the ``surface`` option: ``"default"`` lets the method choose (C-BSP: voxels, S-BSP: isosurface)."""
@@ -38,6 +38,36 @@ def check_tree_memory(nbytes: float, n_faces: int) -> None:
     check_memory(nbytes, option="thresholds", what=f"the tree grown from {n_faces} isosurface triangles",
                  remedy="smooth or downsample the volume, give fewer thresholds, or build from the voxel surface "
                         "(the default) or with method='fitted'")
+
+
+def volume_values(image, name: str = "") -> np.ndarray:
+    """The thresholded point array ``name`` (the active scalars when empty) of a vtkImageData, (nx, ny, nz).
+
+    Raises
+    ------
+    ValueError
+        No such point array (naming the image's point and cell arrays), more than one component, or NaN values.
+    """
+    pd = image.GetPointData()
+    arr = pd.GetArray(name) if name else pd.GetScalars()
+    if arr is None:
+        cd = image.GetCellData()
+        cells = [cd.GetArrayName(i) for i in range(cd.GetNumberOfArrays())]
+        points = [pd.GetArrayName(i) for i in range(pd.GetNumberOfArrays())]
+        hint = (f" (its point arrays {points}: name one with the array option)" if points else
+                f" (its cell arrays {cells} are not thresholded: convert them to point data)" if cells else "")
+        raise ValueError((f"input image has no point array {name!r}" if name else "input image has no point "
+                          "scalars") + hint)
+    if arr.GetNumberOfComponents() != 1:
+        raise ValueError(f"the thresholded array {arr.GetName()!r} must have one component; it has "
+                         f"{arr.GetNumberOfComponents()}")
+    dims = image.GetDimensions()
+    values = numpy_support.vtk_to_numpy(arr).reshape(dims[::-1]).transpose(2, 1, 0)
+    nans = int(np.count_nonzero(np.isnan(values)))
+    if nans:
+        raise ValueError(f"the thresholded array {arr.GetName()!r} has {nans} NaN value(s): a NaN voxel is in no "
+                         "material; fill or mask them first")
+    return values
 
 
 def grid_points(image, association: str) -> np.ndarray:
@@ -110,28 +140,6 @@ class MaterialsFromVolume(ErosionFilter):
         super().__init__(**options)
         self.field: BSPMaterials | None = None
 
-    def _volume(self, image) -> np.ndarray:
-        name = self.get_option("array")
-        pd = image.GetPointData()
-        arr = pd.GetArray(name) if name else pd.GetScalars()
-        if arr is None:
-            cd = image.GetCellData()
-            cells = [cd.GetArrayName(i) for i in range(cd.GetNumberOfArrays())]
-            points = [pd.GetArrayName(i) for i in range(pd.GetNumberOfArrays())]
-            hint = (f" (its point arrays {points}: name one with the array option)" if points else
-                    f" (its cell arrays {cells} are not thresholded: convert them to point data)" if cells else "")
-            raise ValueError((f"input image has no point array {name!r}" if name else "input image has no point "
-                              "scalars") + hint)
-        if arr.GetNumberOfComponents() != 1:
-            raise ValueError("the thresholded array must have one component")
-        dims = image.GetDimensions()
-        values = numpy_support.vtk_to_numpy(arr).reshape(dims[::-1]).transpose(2, 1, 0)
-        nans = int(np.count_nonzero(np.isnan(values)))
-        if nans:
-            raise ValueError(f"the thresholded array {arr.GetName()!r} has {nans} NaN value(s): a NaN voxel is in no "
-                             "material; fill or mask them first")
-        return values
-
     def execute(self, inp, out) -> None:
         """Build the tree from ``inp`` and write the sampled materials into ``out``."""
         if not self.get_option("thresholds"):
@@ -140,7 +148,7 @@ class MaterialsFromVolume(ErosionFilter):
         hardness = parse_numbers(self.get_option("hardness"), "hardness") if self.get_option("hardness") else None
         scale = self.get_option("gradual_scale")
         check_axis_aligned(inp)
-        values = self._volume(inp)
+        values = volume_values(inp, self.get_option("array"))
         field = bsp_from_volume(values, thresholds, origin=inp.GetOrigin(), spacing=inp.GetSpacing(),
                                 method=self.get_option("method"), surface=surface_option(self.get_option("surface")),
                                 seed=self.get_option("seed"), hardness=hardness,
