@@ -74,6 +74,9 @@ def test_grid_builders_refuse_bad_sizes_and_no_data_before_allocating(monkeypatc
             voxel_grid_from_height_field(dem, spacing=spacing)
     with pytest.raises(ValueError, match="1 NaN or infinite height"):
         voxel_grid_from_height_field(np.array([[1.0, np.nan], [1.0, 1.0]]), spacing=1.0)
+    for stride in (0, -2, 1.5):  # 0 failed as "slice step cannot be zero"; -2 flipped the terrain
+        with pytest.raises(ValueError, match="stride must be a whole number >= 1"):
+            voxel_grid_from_height_field(dem, spacing=100.0, stride=stride)
     with pytest.raises(ResourceLimitError, match="spacing, padding"):
         voxel_grid_from_mesh(pv.Sphere(), spacing=1e-5)
     with pytest.raises(ValueError, match="padding must be an integer >= 0"):

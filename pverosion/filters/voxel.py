@@ -202,6 +202,8 @@ def voxel_grid_from_height_field(heights, *, spacing: float, air: float = 0.0, b
     spacing = _check_spacing(spacing)
     if not math.isfinite(air) or air < 0:
         raise ValueError(f"air must be a finite height >= 0; got {air!r}")
+    if isinstance(stride, bool) or not isinstance(stride, (int, np.integer)) or stride < 1:
+        raise ValueError(f"stride must be a whole number >= 1 (every stride-th sample); got {stride!r}")
     origin_xy = np.zeros(2)
     if isinstance(heights, vtkImageData):
         check_axis_aligned(heights)
