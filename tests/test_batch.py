@@ -269,7 +269,7 @@ def test_a_failing_job_is_recorded_and_retried_on_the_next_run(tmp_path):
     assert "job failed" in (failed / "log.txt").read_text()
     pv.Sphere(radius=2.0).save(tmp_path / "broken.vtp")  # fix the input: the job runs again, now successfully
     again = run_batch(path, tmp_path / "out", serial=True, progress=False)
-    assert again.ran == [report.rows[1]["id"]] and again.failed == 0
+    assert again.ran == [again.rows[1]["id"]] and again.failed == 0  # a new id: the input file changed
     assert not failed.exists()
 
 

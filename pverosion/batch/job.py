@@ -12,7 +12,9 @@ place: a job folder is either complete or absent. The folder holds
   and ``log.txt``.
 
 A job that raises is kept as ``<folder>.failed`` with its log and error, so a
-later run retries it; :func:`run_job` never raises for a failing stage.
+later run retries it (with a fixed input file, as a new job of the same index,
+whose success removes the failure's folder); :func:`run_job` never raises for a
+failing stage.
 """
 
 from __future__ import annotations
@@ -153,7 +155,8 @@ def run_job(job: Job, root: str | os.PathLike, *, threads: int | None = None) ->
         if stored is None:
             raise
         return {**stored, "reused": True}
-    shutil.rmtree(jobs / f"{job.folder}.failed", ignore_errors=True)
+    for failed in jobs.glob(f"{job.index:04d}-*.failed"):  # this job's failure, or its own with an older input
+        shutil.rmtree(failed, ignore_errors=True)
     return row
 
 
