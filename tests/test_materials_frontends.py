@@ -215,3 +215,26 @@ def test_the_python_function_names_an_unusable_array_as_the_filter_does():
         pverosion.materials_from_volume(cells, [0.5])
     with pytest.raises(ValueError, match="no point array 'missing'"):
         pverosion.materials_from_volume(image, [0.2], array="missing")
+
+
+@pytest.mark.parametrize("method", ["complete", "fitted"])
+def test_a_tree_file_keeps_the_hardness_and_falloff_it_was_built_with(tmp_path, method):
+    """The tree file kept the planes only: sampling it gave hardness 1, 2, ... and no falloff, without a word,
+    whatever hardness the tree was built with. Both tree kinds now save them; a hardness given wins."""
+    import json
+
+    image = _ball_image(16)
+    tree_file = tmp_path / "t.json"
+    built = pv.wrap(MaterialsFromVolume(thresholds="0.2, 0.6", hardness="10, 20, 30", gradual_scale=0.3,
+                                        method=method, tree_file=str(tree_file)).run(image))
+    sampled = pv.wrap(MaterialSampler(tree_file=str(tree_file)).run(image))
+    np.testing.assert_array_equal(sampled["material_id"], built["material_id"])
+    np.testing.assert_allclose(sampled["hardness"], built["hardness"], rtol=1e-12)
+    assert sampled["hardness"].max() > 20 and len(np.unique(sampled["hardness"])) > 3  # the falloff is kept
+    given = pv.wrap(MaterialSampler(tree_file=str(tree_file), hardness="1, 2, 3").run(image))
+    np.testing.assert_array_equal(given["hardness"], given["material_id"] + 1.0)
+    data = json.loads(tree_file.read_text())
+    data["materials"]["hardness"] = [10, -1, 30]
+    tree_file.write_text(json.dumps(data))
+    with pytest.raises(ValueError, match="damaged materials: hardness must be finite numbers > 0"):
+        MaterialSampler(tree_file=str(tree_file)).run(image)

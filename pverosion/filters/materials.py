@@ -166,7 +166,8 @@ class MaterialsFromVolume(ErosionFilter):
                             ("agreement", float(np.mean(material == reference)))):
             set_field_value(out, name, value)
         if self.get_option("tree_file"):
-            field.tree.to_json(self.get_option("tree_file"), domain=inp.GetBounds())
+            field.tree.to_json(self.get_option("tree_file"), domain=inp.GetBounds(),
+                               materials={"hardness": field.hardness.tolist(), "gradual_scale": scale})
         self.field = field
 
 
@@ -175,7 +176,8 @@ class MaterialSampler(ErosionFilter):
 
     The field is set from Python (``MaterialSampler(field=...)`` or
     :meth:`set_field`), or loaded from a BSP JSON file (``tree_file``, with
-    ``hardness``). Adds ``material_id`` and ``hardness`` as point or cell data.
+    ``hardness``, else the hardness and falloff saved with the tree, else
+    1, 2, ...). Adds ``material_id`` and ``hardness`` as point or cell data.
     """
 
     LABEL = "Material field sampling"
@@ -185,8 +187,8 @@ class MaterialSampler(ErosionFilter):
     PARAMS = (
         Param("association", "point", "Sample at the grid points or at the cell centres.", choices=ASSOCIATIONS),
         Param("tree_file", "", "BSP tree JSON file to sample when no field is set from Python.", path="input"),
-        Param("hardness", "", "Hardness per material of the tree file, comma separated (default 1, 2, ...).",
-              numbers=0),
+        Param("hardness", "", "Hardness per material of the tree file, comma separated (default: the hardness "
+              "saved with the tree, else 1, 2, ...).", numbers=0),
     )
 
     def __init__(self, *, field: MaterialField | None = None, **options):
@@ -206,8 +208,13 @@ class MaterialSampler(ErosionFilter):
             raise ValueError("no material field: set one with field= / set_field(), or give tree_file")
         tree = BSPTree.from_json(path)
         text = self.get_option("hardness")
-        table = parse_numbers(text, "hardness") if text else np.arange(1.0, tree.leaf.max() + 2.0)
-        return BSPMaterials(tree, table)
+        saved = tree.materials or {}
+        if text:
+            return BSPMaterials(tree, parse_numbers(text, "hardness"))
+        if saved:
+            scale = saved["gradual_scale"]
+            return BSPMaterials(tree, saved["hardness"], gradual=Gradual(scale) if scale > 0 else None)
+        return BSPMaterials(tree, np.arange(1.0, tree.leaf.max() + 2.0))
 
     def execute(self, inp, out) -> None:
         """Sample the field at the grid of ``inp`` into ``out``."""

@@ -46,6 +46,7 @@ from __future__ import annotations
 import base64
 import binascii
 import json
+import math
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -232,6 +233,7 @@ class BSPTree:
         self.leaf = np.ascontiguousarray(leaf, dtype=np.int64)
         self.user = dict(user or {})
         self.domain: tuple[float, ...] | None = None  # bounds of the volume it was built for, when read from a file
+        self.materials: dict | None = None  # hardness and falloff saved with the tree, when read from a file
         n = len(self.kind)
         if n == 0:
             raise ValueError("a BSP tree needs at least one node")
@@ -342,15 +344,17 @@ class BSPTree:
             active = active[self.leaf[node[active]] < 0]
         return self.leaf[node], distance
 
-    def to_json(self, path: str | Path, *, domain=None) -> Path:
+    def to_json(self, path: str | Path, *, domain=None, materials: dict | None = None) -> Path:
         """Save the tree to a small JSON file (built-in surfaces only), with the ``domain`` it was built for
-        (bounds ``(xmin, xmax, ymin, ymax, zmin, zmax)``, optional); :meth:`from_json` sets it as ``domain``."""
+        (bounds ``(xmin, xmax, ymin, ymax, zmin, zmax)``, optional) and its ``materials`` (optional:
+        ``{"hardness": [h0, h1, ...], "gradual_scale": s}``, ``s`` 0 for none); :meth:`from_json` sets them as
+        ``domain`` and ``materials``."""
         if self.user:
             raise TypeError("a tree with Python-callable surfaces cannot be saved")
         data = {"format": "pverosion-bsp", "version": 1, "kind": self.kind.tolist(),
                 "params": self.params.tolist(), "negative": self.negative.tolist(),
                 "positive": self.positive.tolist(), "leaf": self.leaf.tolist()}
-        return _write_json(path, data, domain)
+        return _write_json(path, data, domain, materials)
 
     @classmethod
     def from_json(cls, path: str | Path) -> BSPTree | LatticeBSPTree:
@@ -365,6 +369,7 @@ class BSPTree:
         except (KeyError, TypeError, ValueError) as error:
             raise ValueError(f"{path}: damaged pverosion BSP file ({error})") from error
         tree.domain = _read_domain(data, path)
+        tree.materials = _read_materials(data, path)
         return tree
 
     @property
@@ -709,7 +714,9 @@ def _preorder_height(direction, right):
     return -1
 
 
-def _write_json(path: str | Path, data: dict, domain) -> Path:
+def _write_json(path: str | Path, data: dict, domain, materials: dict | None = None) -> Path:
+    if materials is not None:
+        data = {**data, "materials": _checked_materials(materials, "materials")}
     if domain is not None:
         bounds = np.asarray(domain, dtype=np.float64).reshape(-1)
         if bounds.shape != (6,) or not np.isfinite(bounds).all() or np.any(bounds[1::2] < bounds[::2]):
@@ -729,6 +736,25 @@ def _read_domain(data: dict, path) -> tuple[float, ...] | None:
     except (TypeError, ValueError) as error:
         raise ValueError(f"{path}: damaged domain in the BSP file ({error})") from error
     return tuple(bounds.tolist())
+
+
+def _checked_materials(materials, where: str) -> dict:
+    """``{"hardness": [...], "gradual_scale": s}`` with finite hardness > 0 and a finite scale >= 0; ``ValueError``
+    naming ``where`` otherwise."""
+    try:
+        hardness = np.asarray(materials["hardness"], dtype=np.float64).reshape(-1)
+        scale = float(materials.get("gradual_scale", 0.0))
+    except (KeyError, TypeError, ValueError, AttributeError) as error:
+        raise ValueError(f"{where}: needs hardness (one number per material) and gradual_scale ({error})") from None
+    if hardness.size == 0 or not np.isfinite(hardness).all() or np.any(hardness <= 0):
+        raise ValueError(f"{where}: hardness must be finite numbers > 0; got {hardness.tolist()}")
+    if not (math.isfinite(scale) and scale >= 0):
+        raise ValueError(f"{where}: gradual_scale must be a finite number >= 0; got {scale!r}")
+    return {"hardness": hardness.tolist(), "gradual_scale": scale}
+
+
+def _read_materials(data: dict, path) -> dict | None:
+    return _checked_materials(data["materials"], f"{path}: damaged materials") if "materials" in data else None
 
 
 def _read_json(path: str | Path) -> dict:
@@ -796,6 +822,7 @@ class LatticeBSPTree:
         self.origin = np.ascontiguousarray(origin, dtype=np.float64).reshape(3)
         self.spacing = np.ascontiguousarray(spacing, dtype=np.float64).reshape(3)
         self.domain: tuple[float, ...] | None = None  # as BSPTree.domain
+        self.materials: dict | None = None  # as BSPTree.materials
         n = len(self.direction)
         if (self.direction.dtype != np.uint8 or self.value.dtype not in (np.int16, np.int32)
                 or self.right.dtype not in (np.uint16, np.uint32) or self.directions.dtype != np.int8):
@@ -891,10 +918,10 @@ class LatticeBSPTree:
         return cls(arrays["direction"], arrays["value"], arrays["right"], directions=directions, origin=origin,
                    spacing=spacing)
 
-    def to_json(self, path: str | Path, *, domain=None) -> Path:
+    def to_json(self, path: str | Path, *, domain=None, materials: dict | None = None) -> Path:
         """Save the tree to a JSON file of its compressed arrays (read by :meth:`BSPTree.from_json` too), with the
-        ``domain`` it was built for (as :meth:`BSPTree.to_json`)."""
-        return _write_json(path, self.to_dict(), domain)
+        ``domain`` it was built for and its ``materials`` (as :meth:`BSPTree.to_json`)."""
+        return _write_json(path, self.to_dict(), domain, materials)
 
     @classmethod
     def from_json(cls, path: str | Path) -> LatticeBSPTree:
@@ -902,6 +929,7 @@ class LatticeBSPTree:
         data = _read_json(path)
         tree = cls.from_dict(data)
         tree.domain = _read_domain(data, path)
+        tree.materials = _read_materials(data, path)
         return tree
 
 
