@@ -253,7 +253,8 @@ def _check_heights(values: np.ndarray) -> None:
 
 def voxel_grid_from_volume(volume, *, threshold: float, array: str | None = None,
                            material_field: MaterialField | None = None) -> pv.ImageData:
-    """Material where a volume's values reach ``threshold`` (on the volume's own grid; cubic voxels needed)."""
+    """Material where a volume's values exceed ``threshold`` (on the volume's own grid; cubic voxels needed), as
+    material 1 of :func:`~pverosion.materials_from_volume` with the same threshold is."""
     image = pv.wrap(volume)
     check_axis_aligned(image)
     values = np.asarray(image[array] if array else image.active_scalars, dtype=np.float64)
@@ -266,7 +267,7 @@ def voxel_grid_from_volume(volume, *, threshold: float, array: str | None = None
     if np.isnan(values).any():
         raise ValueError(f"the volume has {int(np.isnan(values).sum())} NaN value(s): they are neither material "
                          "nor empty; fill them first")
-    amount = (values >= threshold).astype(np.float64).reshape(image.dimensions, order="F")
+    amount = (values > threshold).astype(np.float64).reshape(image.dimensions, order="F")
     if not amount.any():
         raise ValueError(f"threshold {threshold:g} leaves no material: the volume's values are "
                          f"{values.min():g}..{values.max():g}")
