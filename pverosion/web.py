@@ -8,6 +8,8 @@ browser, remote or headless, without WebGL. In Jupyter the plain
 
 from __future__ import annotations
 
+import socket
+
 from pverosion.viewer import SeriesViewer
 
 __all__ = ["build_app", "serve"]
@@ -76,7 +78,16 @@ def build_app(viewer: SeriesViewer, *, name: str = "pverosion"):
 
 
 def serve(viewer: SeriesViewer, *, host: str = "127.0.0.1", port: int = 8080, open_browser: bool = False) -> None:
-    """Serve :func:`build_app`'s page at ``http://host:port/`` until interrupted."""
+    """Serve :func:`build_app`'s page at ``http://host:port/`` until interrupted; ``ValueError`` at once when the
+    port is taken (before anything is built or said to be served)."""
+    if port:
+        with socket.socket() as probe:
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as the server binds it
+            try:
+                probe.bind((host, port))
+            except OSError as exc:
+                raise ValueError(f"--web: port {port} on {host} is taken ({exc.strerror or exc}); give another "
+                                 "port") from None
     server = build_app(viewer)
     print(f"pverosion view: serving http://{host}:{port}/", flush=True)
     server.start(host=host, port=port, open_browser=open_browser, show_connection_info=False)

@@ -305,6 +305,21 @@ def test_cli_refuses_bad_picture_options_before_rendering(series_path, tmp_path,
         view(series_path, off_screen=True, window_size=(-10, 100))
 
 
+def test_cli_web_on_a_taken_port_says_so_before_serving(series_path, capsys):
+    """The command printed "serving http://..." and then failed on the bind."""
+    import socket
+
+    from pverosion.cli import main
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        assert main(["view", str(series_path), "--web", str(port)]) == 2
+    captured = capsys.readouterr()
+    assert f"port {port} on 127.0.0.1 is taken" in captured.err and "serving" not in captured.out
+
+
 def test_cli_window_without_a_display_is_refused(series_path, monkeypatch, capsys):
     """Without a display VTK printed X server errors and the command exited 0 having shown nothing."""
     from pverosion.cli import main
