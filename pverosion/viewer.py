@@ -204,14 +204,13 @@ class SeriesViewer(pv.Plotter):
     def __init__(self, series: Series, *, scalars: str | None = None, step: int = 0,
                  compare: tuple[int, int] | None = None, other: Series | None = None,
                  statistic: str | None = None, widgets: bool = True, **kwargs) -> None:
-        if compare is not None and other is not None:
-            raise ValueError("compare two steps or two runs, not both")
         steps = [int(step)] if compare is None else [int(s) for s in compare]
         if compare is not None or other is not None:
             kwargs.setdefault("shape", (1, 2))
         kwargs.setdefault("window_size", (1024, 768))
-        super().__init__(**kwargs)
-        problem = f"compare takes two steps; got {compare!r}" if len(steps) != (1 if compare is None else 2) else ""
+        super().__init__(**kwargs)  # first: a plotter refused before it exists fails again when collected
+        problem = ("compare two steps or two runs, not both" if compare is not None and other is not None else
+                   f"compare takes two steps; got {compare!r}" if len(steps) != (1 if compare is None else 2) else "")
         for s in steps:
             if not problem and not 0 <= s < len(series):
                 problem = f"{'compare ' if compare else ''}step {s} out of range 0..{len(series) - 1}"

@@ -305,6 +305,22 @@ def test_cli_refuses_bad_picture_options_before_rendering(series_path, tmp_path,
         view(series_path, off_screen=True, window_size=(-10, 100))
 
 
+def test_a_refused_comparison_leaves_no_half_made_plotter(series_path, tmp_path, monkeypatch, capsys):
+    """Comparing two steps and two runs at once was refused before the plotter existed, and collecting it printed
+    an ignored AttributeError traceback."""
+    import gc
+    import sys
+
+    from pverosion.cli import main
+
+    unraisable = []
+    monkeypatch.setattr(sys, "unraisablehook", unraisable.append)
+    assert main(["view", str(series_path), "--compare", "0,1", "--compare-run", str(series_path),
+                 "--screenshot", str(tmp_path / "c.png")]) == 2
+    gc.collect()
+    assert "compare two steps or two runs, not both" in capsys.readouterr().err and unraisable == []
+
+
 def test_cli_web_on_a_taken_port_says_so_before_serving(series_path, capsys):
     """The command printed "serving http://..." and then failed on the bind."""
     import socket
