@@ -18,7 +18,6 @@ import pyvista as pv
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 
 from pverosion._frontend import apply_filter, renamed, run_filter, stage_function
-from pverosion.filters.base import check_axis_aligned
 from pverosion.filters.curvature import Curvature
 from pverosion.filters.hydraulic import HydraulicErosion
 from pverosion.filters.materials import (
@@ -190,7 +189,6 @@ def materials_from_volume(
     if isinstance(hardness, str):
         hardness = [float(v) for v in params["hardness"].validate(hardness).split(",")] if hardness else None
     if isinstance(volume, pv.ImageData):
-        check_axis_aligned(volume)
         values = volume_values(volume, array)
         origin, spacing = volume.origin, volume.spacing
     else:

@@ -46,8 +46,10 @@ def volume_values(image, name: str = "") -> np.ndarray:
     Raises
     ------
     ValueError
-        No such point array (naming the image's point and cell arrays), more than one component, or NaN values.
+        An image with turned axes (:func:`~pverosion.filters.base.check_axis_aligned`), no such point array
+        (naming the image's point and cell arrays), more than one component, or NaN values.
     """
+    check_axis_aligned(image)
     pd = image.GetPointData()
     arr = pd.GetArray(name) if name else pd.GetScalars()
     if arr is None:
@@ -147,7 +149,6 @@ class MaterialsFromVolume(ErosionFilter):
         thresholds = parse_numbers(self.get_option("thresholds"), "thresholds")
         hardness = parse_numbers(self.get_option("hardness"), "hardness") if self.get_option("hardness") else None
         scale = self.get_option("gradual_scale")
-        check_axis_aligned(inp)
         values = volume_values(inp, self.get_option("array"))
         field = bsp_from_volume(values, thresholds, origin=inp.GetOrigin(), spacing=inp.GetSpacing(),
                                 method=self.get_option("method"), surface=surface_option(self.get_option("surface")),

@@ -31,7 +31,7 @@ from pverosion.filters.base import (
     set_field_value,
     set_multiblock,
 )
-from pverosion.filters.materials import grid_points
+from pverosion.filters.materials import grid_points, volume_values
 from pverosion.kernels.materials.field import MaterialField
 from pverosion.kernels.voxel.erosion import MODELS, ErosionParameters, VoxelErosionSolver
 from pverosion.kernels.voxel.fluid import ADVECTION_SCHEMES, VoxelFluid, cell_velocity
@@ -256,18 +256,14 @@ def voxel_grid_from_volume(volume, *, threshold: float, array: str | None = None
     """Material where a volume's values exceed ``threshold`` (on the volume's own grid; cubic voxels needed), as
     material 1 of :func:`~pverosion.materials_from_volume` with the same threshold is."""
     image = pv.wrap(volume)
-    check_axis_aligned(image)
-    values = np.asarray(image[array] if array else image.active_scalars, dtype=np.float64)
     sx, sy, sz = image.spacing
     if not (np.isclose(sx, sy) and np.isclose(sx, sz)):
         spacing = tuple(float(s) for s in image.spacing)
         raise ValueError(f"voxel erosion needs cubic voxels; the volume's spacing is {spacing}")
     if not math.isfinite(threshold):
         raise ValueError(f"threshold must be finite; got {threshold!r}")
-    if np.isnan(values).any():
-        raise ValueError(f"the volume has {int(np.isnan(values).sum())} NaN value(s): they are neither material "
-                         "nor empty; fill them first")
-    amount = (values > threshold).astype(np.float64).reshape(image.dimensions, order="F")
+    values = volume_values(image, array or "")  # (nx, ny, nz); turned axes, vector arrays and NaN refused
+    amount = (values > threshold).astype(np.float64)
     if not amount.any():
         raise ValueError(f"threshold {threshold:g} leaves no material: the volume's values are "
                          f"{values.min():g}..{values.max():g}")
